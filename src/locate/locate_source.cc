@@ -1,0 +1,465 @@
+#include "opl/locate/locate_source.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <deque>
+#include <limits>
+#include <memory>
+#include <random>
+#include <set>
+#include <sstream>
+
+#include <ceres/loss_function.h>
+#include <ceres/manifold.h>
+#include <ceres/problem.h>
+#include <ceres/solver.h>
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <Eigen/SVD>
+
+#include "opl/geometry/rotation.h"
+#include "opl/geometry/spherical.h"
+#include "opl/locate/azel_cost_function.h"
+#include "opl/locate/p3p.h"
+
+namespace opl {
+namespace {
+
+std::string Num(double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof(buf), "%.6g", v);
+  return buf;
+}
+
+// The data of one locate, in flat arrays.
+struct Data {
+  std::vector<int> beam_ids;
+  std::vector<Eigen::Vector3d> points;    // scene
+  std::vector<Eigen::Vector3d> bearings;  // unit, source frame
+  std::vector<double> az, el;             // beam angles
+  std::vector<const Beam*> beams;
+  std::vector<Eigen::Matrix3d> covs;      // empty when unweighted
+};
+
+Status CheckSpots(const BeamPattern& pattern, const std::vector<SpotObservation>& spots,
+                  Data* data) {
+  std::set<int> seen;
+  int with_cov = 0;
+  for (size_t i = 0; i < spots.size(); ++i) {
+    const SpotObservation& s = spots[i];
+    const std::string which = "spot " + std::to_string(i) + " (beam " + std::to_string(s.beam_id) + ")";
+    const Beam* beam = pattern.Find(s.beam_id);
+    if (beam == nullptr) {
+      return Status::InvalidArgument(which + ": beam id is not in the pattern (1.." +
+                                     std::to_string(pattern.beams_per_side() *
+                                                    pattern.beams_per_side()) +
+                                     ", calibrated beams only)");
+    }
+    if (!seen.insert(s.beam_id).second) {
+      return Status::InvalidArgument(which + ": duplicate beam id");
+    }
+    if (!s.point_in_scene.allFinite()) {
+      return Status::InvalidArgument(which + ": point is not finite");
+    }
+    if (s.cov_in_scene) {
+      const Eigen::Matrix3d& C = *s.cov_in_scene;
+      if (!C.allFinite() || (C - C.transpose()).cwiseAbs().maxCoeff() > 1e-9 * (1.0 + C.norm())) {
+        return Status::InvalidArgument(which + ": covariance is not finite and symmetric");
+      }
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(C, Eigen::EigenvaluesOnly);
+      if (eig.eigenvalues()(0) < -1e-12 * std::max(1e-300, eig.eigenvalues()(2))) {
+        return Status::InvalidArgument(which + ": covariance is not positive semi-definite");
+      }
+      ++with_cov;
+    }
+    data->beam_ids.push_back(s.beam_id);
+    data->points.push_back(s.point_in_scene);
+    data->bearings.push_back(beam->DirectionInSource());
+    data->az.push_back(beam->az_rad);
+    data->el.push_back(beam->el_rad);
+    data->beams.push_back(beam);
+  }
+  if (with_cov != 0 && with_cov != static_cast<int>(spots.size())) {
+    return Status::InvalidArgument("either every spot or no spot must carry a covariance (" +
+                                   std::to_string(with_cov) + " of " +
+                                   std::to_string(spots.size()) + " do)");
+  }
+  if (with_cov > 0) {
+    for (const SpotObservation& s : spots) data->covs.push_back(*s.cov_in_scene);
+  }
+  return Status::Ok();
+}
+
+// Squared sine of the angle between bearing f (unit) and q; 1 when behind.
+inline double AngleErrorSq(const Eigen::Vector3d& f, const Eigen::Vector3d& q) {
+  const double d = f.dot(q);
+  if (!(d > 0.0)) return 1.0;
+  return f.cross(q).squaredNorm() / q.squaredNorm();
+}
+
+struct RansacOutcome {
+  PoseRt pose;  // source_from_scene
+  int num_inliers = 0;
+  int iterations = 0;
+};
+
+bool Ransac(const Data& data, const LocateOptions& options, RansacOutcome* out) {
+  const int n = static_cast<int>(data.points.size());
+  const double th2 = std::pow(std::sin(options.ransac_inlier_threshold_rad), 2);
+  std::mt19937_64 rng(options.ransac_seed);
+  std::uniform_int_distribution<int> pick(0, n - 1);
+  double best_cost = std::numeric_limits<double>::infinity();
+  int best_inliers = 0;
+  long needed = options.ransac_max_iterations;
+  std::array<PoseRt, 4> solutions;
+  int it = 0;
+  for (; it < needed && it < options.ransac_max_iterations; ++it) {
+    int i0 = pick(rng), i1 = pick(rng), i2 = pick(rng);
+    if (i0 == i1 || i0 == i2 || i1 == i2) continue;
+    const Eigen::Vector3d a = data.points[i1] - data.points[i0];
+    const Eigen::Vector3d b = data.points[i2] - data.points[i0];
+    // Reject nearly collinear samples: sin(angle) < 0.05.
+    if (a.cross(b).squaredNorm() < 0.0025 * a.squaredNorm() * b.squaredNorm()) continue;
+    const int ns = SolveP3P({data.bearings[i0], data.bearings[i1], data.bearings[i2]},
+                            {data.points[i0], data.points[i1], data.points[i2]}, &solutions);
+    for (int s = 0; s < ns; ++s) {
+      const PoseRt& pose = solutions[s];
+      double cost = 0.0;
+      int inliers = 0;
+      for (int k = 0; k < n && cost < best_cost; ++k) {
+        const double e2 = AngleErrorSq(data.bearings[k], pose.R * data.points[k] + pose.t);
+        if (e2 < th2) {
+          cost += e2;
+          ++inliers;
+        } else {
+          cost += th2;
+        }
+      }
+      if (cost < best_cost) {
+        best_cost = cost;
+        best_inliers = inliers;
+        out->pose = pose;
+        const double w = static_cast<double>(inliers) / n;
+        const double p_good = w * w * w;
+        if (p_good >= 1.0 - 1e-12) {
+          needed = 0;
+        } else {
+          needed = static_cast<long>(
+              std::ceil(std::log(1.0 - options.ransac_confidence) / std::log(1.0 - p_good)));
+        }
+      }
+    }
+  }
+  out->iterations = it;
+  out->num_inliers = best_inliers;
+  return best_inliers >= 4;
+}
+
+// W with W^T W = C^-1 for the angular covariance C of every spot at a pose.
+Status Whitening(const Data& data, const Eigen::Matrix3d& R, const Eigen::Vector3d& t,
+                 std::vector<Eigen::Matrix2d>* W) {
+  const int n = static_cast<int>(data.points.size());
+  W->assign(n, Eigen::Matrix2d::Identity());
+  if (data.covs.empty()) return Status::Ok();
+  for (int i = 0; i < n; ++i) {
+    const Eigen::Vector3d q = R.transpose() * (data.points[i] - t);
+    const Eigen::Matrix<double, 2, 3> Jp = AzElJacobian(q) * R.transpose();
+    Eigen::Matrix2d C = Jp * data.covs[i] * Jp.transpose();
+    if (data.beams[i]->cov_azel_rad2) C += *data.beams[i]->cov_azel_rad2;
+    Eigen::LLT<Eigen::Matrix2d> llt(C);
+    if (llt.info() != Eigen::Success || !(llt.matrixL()(1, 1) > 0.0) ||
+        !(llt.matrixL()(0, 0) > 0.0)) {
+      return Status::InvalidArgument("spot of beam " + std::to_string(data.beam_ids[i]) +
+                                     ": its covariance gives no angular uncertainty "
+                                     "(zero or singular across the ray)");
+    }
+    (*W)[i] = llt.matrixL().toDenseMatrix().inverse();
+  }
+  return Status::Ok();
+}
+
+// Normalised residual norm of every spot at a pose.
+std::vector<double> NormalizedResiduals(const Data& data, const std::vector<Eigen::Matrix2d>& W,
+                                        const Eigen::Matrix3d& R, const Eigen::Vector3d& t,
+                                        std::vector<Eigen::Vector2d>* raw) {
+  const int n = static_cast<int>(data.points.size());
+  std::vector<double> out(n);
+  raw->resize(n);
+  for (int i = 0; i < n; ++i) {
+    const Eigen::Vector3d q = R.transpose() * (data.points[i] - t);
+    if (!(q.x() * q.x() + q.y() * q.y() > 0.0)) {
+      (*raw)[i] = Eigen::Vector2d::Constant(M_PI);
+      out[i] = std::numeric_limits<double>::infinity();
+      continue;
+    }
+    (*raw)[i] = AzElCostFunction::AngularResidual(R, t, data.points[i], data.az[i], data.el[i]);
+    out[i] = (W[i] * (*raw)[i]).norm();
+  }
+  return out;
+}
+
+struct CeresOutcome {
+  bool usable = false;
+  int iterations = 0;
+};
+
+CeresOutcome SolveWithCeres(const Data& data, const std::vector<Eigen::Matrix2d>& W,
+                            const std::vector<char>& use, const LocateOptions& options,
+                            double quat_xyzw[4], double origin[3]) {
+  static const ceres::EigenQuaternionManifold kQuaternionManifold;
+  const bool weighted = !data.covs.empty();
+  const double a = weighted ? options.loss_scale : options.loss_scale_unweighted_rad;
+  std::unique_ptr<ceres::LossFunction> loss;
+  if (options.loss == RobustLoss::kHuber) loss = std::make_unique<ceres::HuberLoss>(a);
+  if (options.loss == RobustLoss::kCauchy) loss = std::make_unique<ceres::CauchyLoss>(a);
+
+  std::deque<AzElCostFunction> costs;  // CostFunction is not movable
+  for (size_t i = 0; i < data.points.size(); ++i) {
+    costs.emplace_back(data.points[i], data.az[i], data.el[i], W[i]);
+  }
+  ceres::Problem::Options problem_options;
+  problem_options.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  problem_options.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  problem_options.enable_fast_removal = false;
+  ceres::Problem problem(problem_options);
+  problem.AddParameterBlock(quat_xyzw, 4, const_cast<ceres::EigenQuaternionManifold*>(&kQuaternionManifold));
+  problem.AddParameterBlock(origin, 3);
+  for (size_t i = 0; i < costs.size(); ++i) {
+    if (use[i]) problem.AddResidualBlock(&costs[i], loss.get(), quat_xyzw, origin);
+  }
+  ceres::Solver::Options solver_options;
+  solver_options.linear_solver_type = ceres::DENSE_QR;
+  solver_options.max_num_iterations = options.max_iterations;
+  solver_options.function_tolerance = options.function_tolerance;
+  solver_options.gradient_tolerance = options.gradient_tolerance;
+  solver_options.parameter_tolerance = options.parameter_tolerance;
+  solver_options.logging_type = ceres::SILENT;
+  solver_options.minimizer_progress_to_stdout = false;
+  solver_options.num_threads = 1;
+  ceres::Solver::Summary summary;
+  ceres::Solve(solver_options, &problem, &summary);
+  CeresOutcome out;
+  out.usable = summary.IsSolutionUsable();
+  out.iterations = static_cast<int>(summary.iterations.size());
+  return out;
+}
+
+}  // namespace
+
+Status LocateOptions::Validate() const {
+  auto bad = [](const std::string& field, double value, const std::string& rule) {
+    return Status::InvalidArgument("LocateOptions." + field + " = " + Num(value) + ": " + rule);
+  };
+  if (!(loss_scale > 0.0 && std::isfinite(loss_scale))) return bad("loss_scale", loss_scale, "must be > 0");
+  if (!(loss_scale_unweighted_rad > 0.0 && std::isfinite(loss_scale_unweighted_rad))) {
+    return bad("loss_scale_unweighted_rad", loss_scale_unweighted_rad, "must be > 0");
+  }
+  if (!(ransac_inlier_threshold_rad > 0.0 && ransac_inlier_threshold_rad < 0.5)) {
+    return bad("ransac_inlier_threshold_rad", ransac_inlier_threshold_rad, "must be in (0, 0.5)");
+  }
+  if (ransac_max_iterations < 1) return bad("ransac_max_iterations", ransac_max_iterations, "must be >= 1");
+  if (!(ransac_confidence > 0.0 && ransac_confidence < 1.0)) {
+    return bad("ransac_confidence", ransac_confidence, "must be in (0, 1)");
+  }
+  if (!(outlier_threshold > 0.0 && std::isfinite(outlier_threshold))) {
+    return bad("outlier_threshold", outlier_threshold, "must be > 0");
+  }
+  if (!(min_unweighted_sigma_rad > 0.0 && std::isfinite(min_unweighted_sigma_rad))) {
+    return bad("min_unweighted_sigma_rad", min_unweighted_sigma_rad, "must be > 0");
+  }
+  if (!(min_inlier_fraction > 0.0 && min_inlier_fraction <= 1.0)) {
+    return bad("min_inlier_fraction", min_inlier_fraction, "must be in (0, 1]");
+  }
+  if (max_iterations < 1) return bad("max_iterations", max_iterations, "must be >= 1");
+  if (!(function_tolerance >= 0.0) || !(gradient_tolerance >= 0.0) || !(parameter_tolerance >= 0.0)) {
+    return Status::InvalidArgument("LocateOptions tolerances must be >= 0");
+  }
+  if (initial_scene_from_source &&
+      (!initial_scene_from_source->translation.allFinite() ||
+       !initial_scene_from_source->rotation.coeffs().allFinite())) {
+    return Status::InvalidArgument("LocateOptions.initial_scene_from_source is not finite");
+  }
+  return Status::Ok();
+}
+
+std::vector<int> LocateResult::OutlierBeamIds() const {
+  std::vector<int> ids;
+  for (const SpotResidual& r : residuals) {
+    if (r.outlier) ids.push_back(r.beam_id);
+  }
+  return ids;
+}
+
+std::string LocateResult::BriefReport() const {
+  std::ostringstream os;
+  const Eigen::Vector3d& o = scene_from_source.translation;
+  os << "origin (" << Num(o.x()) << ", " << Num(o.y()) << ", " << Num(o.z()) << ")"
+     << " +- (" << Num(std::sqrt(origin_covariance(0, 0))) << ", "
+     << Num(std::sqrt(origin_covariance(1, 1))) << ", " << Num(std::sqrt(origin_covariance(2, 2)))
+     << "), rms " << Num(rms_residual_rad * 1e6) << " urad, " << num_inliers << "/" << num_spots
+     << " spots used, " << (num_spots - num_inliers) << " outliers";
+  return os.str();
+}
+
+Result<LocateResult> LocateSource(const BeamPattern& pattern,
+                                  const std::vector<SpotObservation>& spots,
+                                  const LocateOptions& options) {
+  OPL_RETURN_IF_ERROR(options.Validate());
+  OPL_RETURN_IF_ERROR(pattern.Validate());
+  Data data;
+  OPL_RETURN_IF_ERROR(CheckSpots(pattern, spots, &data));
+  const int n = static_cast<int>(data.points.size());
+  if (n < 4) {
+    return Status::NoSolution("too few spots: " + std::to_string(n) +
+                              " given, at least 4 are needed to fix the 6 pose parameters");
+  }
+  // Degenerate geometry: spots (nearly) on one line leave a rotation free.
+  {
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    for (const auto& p : data.points) mean += p;
+    mean /= n;
+    Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+    for (const auto& p : data.points) scatter += (p - mean) * (p - mean).transpose();
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(scatter, Eigen::EigenvaluesOnly);
+    const Eigen::Vector3d ev = eig.eigenvalues().cwiseMax(0.0);
+    if (!(std::sqrt(ev(1)) > 1e-3 * std::sqrt(ev(2)))) {
+      return Status::NoSolution("degenerate spots: all " + std::to_string(n) +
+                                " spots lie on one line (within 0.1% of their extent); "
+                                "the rotation about that line is undetermined");
+    }
+  }
+
+  LocateResult result;
+  result.num_spots = n;
+  result.weighted = !data.covs.empty();
+
+  // 1. Initial pose: the user's guess when it explains the data, else RANSAC.
+  PoseRt init;  // source_from_scene
+  bool have_init = false;
+  const double th2 = std::pow(std::sin(options.ransac_inlier_threshold_rad), 2);
+  if (options.initial_scene_from_source) {
+    const Rigid3d sfs = options.initial_scene_from_source->Inverse();
+    init.R = sfs.RotationMatrix();
+    init.t = sfs.translation;
+    int inliers = 0;
+    for (int i = 0; i < n; ++i) {
+      inliers += AngleErrorSq(data.bearings[i], init.R * data.points[i] + init.t) < th2;
+    }
+    have_init = inliers >= 0.9 * n;
+  }
+  std::vector<char> use(n, 1);
+  if (!have_init) {
+    RansacOutcome ransac;
+    if (!Ransac(data, options, &ransac)) {
+      return Status::NoSolution("no pose explains the spots: RANSAC found at most " +
+                                std::to_string(ransac.num_inliers) + " consistent spots of " +
+                                std::to_string(n) + " (threshold " +
+                                Num(options.ransac_inlier_threshold_rad) + " rad)");
+    }
+    init = ransac.pose;
+    result.ransac_iterations = ransac.iterations;
+  }
+  for (int i = 0; i < n; ++i) {
+    use[i] = AngleErrorSq(data.bearings[i], init.R * data.points[i] + init.t) < th2;
+  }
+
+  // Parameters: scene_from_source.
+  Eigen::Matrix3d R = init.R.transpose();
+  Eigen::Vector3d t = -(R * init.t);
+  std::vector<Eigen::Matrix2d> W;
+  OPL_RETURN_IF_ERROR(Whitening(data, R, t, &W));
+
+  // 2. Refine; flag outliers; refine again until the inlier set is stable.
+  const double sigma_floor = result.weighted ? 1.0 : options.min_unweighted_sigma_rad;
+  std::vector<double> norms;
+  std::vector<Eigen::Vector2d> raw;
+  for (int round = 0; round < 6; ++round) {
+    const int used = static_cast<int>(std::count(use.begin(), use.end(), 1));
+    if (used < 4 || used < options.min_inlier_fraction * n) {
+      return Status::NoSolution("no pose explains enough spots: " + std::to_string(used) +
+                                " of " + std::to_string(n) + " are consistent (at least " +
+                                Num(100.0 * options.min_inlier_fraction) + "% needed)");
+    }
+    Eigen::Quaterniond quat(R);
+    double quat_xyzw[4] = {quat.x(), quat.y(), quat.z(), quat.w()};
+    double origin[3] = {t.x(), t.y(), t.z()};
+    const CeresOutcome ceres_out = SolveWithCeres(data, W, use, options, quat_xyzw, origin);
+    if (!ceres_out.usable) return Status::NoSolution("the pose refinement failed to converge");
+    result.solver_iterations += ceres_out.iterations;
+    R = Eigen::Quaterniond(quat_xyzw[3], quat_xyzw[0], quat_xyzw[1], quat_xyzw[2])
+            .normalized()
+            .toRotationMatrix();
+    t = Eigen::Vector3d(origin[0], origin[1], origin[2]);
+    if (round == 0) OPL_RETURN_IF_ERROR(Whitening(data, R, t, &W));
+
+    norms = NormalizedResiduals(data, W, R, t, &raw);
+    std::vector<double> inlier_norms;
+    for (int i = 0; i < n; ++i) {
+      if (use[i]) inlier_norms.push_back(norms[i]);
+    }
+    std::nth_element(inlier_norms.begin(), inlier_norms.begin() + inlier_norms.size() / 2,
+                     inlier_norms.end());
+    // Median of a 2D Gaussian norm is sigma sqrt(2 ln 2).
+    const double sigma = std::max(sigma_floor, inlier_norms[inlier_norms.size() / 2] / 1.1774100225154747);
+    const double threshold = options.outlier_threshold * sigma;
+    std::vector<char> next(n);
+    for (int i = 0; i < n; ++i) next[i] = norms[i] <= threshold;
+    if (next == use) break;  // the inlier set is stable
+    use = next;
+  }
+  {
+    const int used = static_cast<int>(std::count(use.begin(), use.end(), 1));
+    if (used < 4 || used < options.min_inlier_fraction * n) {
+      return Status::NoSolution("no pose explains enough spots: " + std::to_string(used) +
+                                " of " + std::to_string(n) + " are consistent after refinement");
+    }
+  }
+
+  // 3. Covariance in the tangent (dtheta left, scene frame; dt) at the solution.
+  Eigen::Matrix<double, 6, 6> H = Eigen::Matrix<double, 6, 6>::Zero();
+  double chi2 = 0.0, sum_sq_rad = 0.0;
+  int used = 0;
+  for (int i = 0; i < n; ++i) {
+    if (!use[i]) continue;
+    const Eigen::Vector3d u = data.points[i] - t;
+    const Eigen::Vector3d q = R.transpose() * u;
+    Eigen::Matrix<double, 3, 6> dq;
+    dq.leftCols<3>() = R.transpose() * Skew(u);
+    dq.rightCols<3>() = -R.transpose();
+    const Eigen::Matrix<double, 2, 6> J = W[i] * AzElJacobian(q) * dq;
+    H += J.transpose() * J;
+    chi2 += (W[i] * raw[i]).squaredNorm();
+    sum_sq_rad += raw[i].squaredNorm();
+    ++used;
+  }
+  const int dof = 2 * used - 6;
+  Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(H);
+  const Eigen::Matrix<double, 6, 6> cov = ldlt.solve(Eigen::Matrix<double, 6, 6>::Identity());
+  if (ldlt.info() != Eigen::Success || !cov.allFinite() || !(ldlt.vectorD().minCoeff() > 0.0) ||
+      ldlt.vectorD().minCoeff() < 1e-14 * ldlt.vectorD().maxCoeff()) {
+    return Status::NoSolution("degenerate spots: the pose is not determined by them "
+                              "(normal matrix singular)");
+  }
+  result.variance_factor = dof > 0 ? chi2 / dof : 0.0;
+  result.covariance = cov;
+  if (!result.weighted) {
+    result.covariance *= result.variance_factor;
+    result.covariance_scaled = true;
+  }
+  result.scene_from_source = Rigid3d(R, t);
+  result.origin_covariance = result.covariance.bottomRightCorner<3, 3>();
+  result.rotation_xyz_rad = XyzAnglesRadFromRotation(R);
+  const Eigen::Matrix3d J_xyz = XyzAnglesJacobianWrtLeftPerturbation(result.rotation_xyz_rad);
+  result.rotation_xyz_covariance = J_xyz * result.covariance.topLeftCorner<3, 3>() * J_xyz.transpose();
+  result.num_inliers = used;
+  result.rms_residual_rad = std::sqrt(sum_sq_rad / (2.0 * used));
+  result.residuals.resize(n);
+  for (int i = 0; i < n; ++i) {
+    result.residuals[i] = {data.beam_ids[i], raw[i], norms[i], !use[i]};
+  }
+  return result;
+}
+
+}  // namespace opl

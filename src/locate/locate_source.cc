@@ -3,24 +3,21 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <deque>
 #include <limits>
 #include <memory>
 #include <random>
-#include <set>
 #include <sstream>
 
-#include <ceres/loss_function.h>
-#include <ceres/manifold.h>
-#include <ceres/problem.h>
-#include <ceres/solver.h>
+#include <ceres/tiny_solver.h>
+#include <ceres/tiny_solver_cost_function_adapter.h>
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
+#include <Eigen/LU>
 #include <Eigen/SVD>
 
 #include "opl/geometry/rotation.h"
 #include "opl/geometry/spherical.h"
-#include "opl/locate/azel_cost_function.h"
+#include "opl/locate/source_pose_cost_function.h"
 #include "opl/locate/p3p.h"
 
 namespace opl {
@@ -44,7 +41,7 @@ struct Data {
 
 Status CheckSpots(const BeamPattern& pattern, const std::vector<SpotObservation>& spots,
                   Data* data) {
-  std::set<int> seen;
+  std::vector<char> seen(static_cast<size_t>(pattern.beams_per_side()) * pattern.beams_per_side() + 1, 0);
   int with_cov = 0;
   for (size_t i = 0; i < spots.size(); ++i) {
     const SpotObservation& s = spots[i];
@@ -56,9 +53,8 @@ Status CheckSpots(const BeamPattern& pattern, const std::vector<SpotObservation>
                                                     pattern.beams_per_side()) +
                                      ", calibrated beams only)");
     }
-    if (!seen.insert(s.beam_id).second) {
-      return Status::InvalidArgument(which + ": duplicate beam id");
-    }
+    if (seen[s.beam_id]) return Status::InvalidArgument(which + ": duplicate beam id");
+    seen[s.beam_id] = 1;
     if (!s.point_in_scene.allFinite()) {
       return Status::InvalidArgument(which + ": point is not finite");
     }
@@ -67,15 +63,21 @@ Status CheckSpots(const BeamPattern& pattern, const std::vector<SpotObservation>
       if (!C.allFinite() || (C - C.transpose()).cwiseAbs().maxCoeff() > 1e-9 * (1.0 + C.norm())) {
         return Status::InvalidArgument(which + ": covariance is not finite and symmetric");
       }
-      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(C, Eigen::EigenvaluesOnly);
-      if (eig.eigenvalues()(0) < -1e-12 * std::max(1e-300, eig.eigenvalues()(2))) {
+      // Positive semi-definite: every principal minor >= 0 (to round-off).
+      const double tol = -1e-12 * C.cwiseAbs().maxCoeff() * C.cwiseAbs().maxCoeff();
+      const bool psd = C(0, 0) >= 0.0 && C(1, 1) >= 0.0 && C(2, 2) >= 0.0 &&
+                       C(0, 0) * C(1, 1) - C(0, 1) * C(0, 1) >= tol &&
+                       C(0, 0) * C(2, 2) - C(0, 2) * C(0, 2) >= tol &&
+                       C(1, 1) * C(2, 2) - C(1, 2) * C(1, 2) >= tol &&
+                       C.determinant() >= tol * C.cwiseAbs().maxCoeff();
+      if (!psd) {
         return Status::InvalidArgument(which + ": covariance is not positive semi-definite");
       }
       ++with_cov;
     }
     data->beam_ids.push_back(s.beam_id);
     data->points.push_back(s.point_in_scene);
-    data->bearings.push_back(beam->DirectionInSource());
+    data->bearings.push_back(pattern.DirectionInSource(s.beam_id));
     data->az.push_back(beam->az_rad);
     data->el.push_back(beam->el_rad);
     data->beams.push_back(beam);
@@ -89,6 +91,13 @@ Status CheckSpots(const BeamPattern& pattern, const std::vector<SpotObservation>
     for (const SpotObservation& s : spots) data->covs.push_back(*s.cov_in_scene);
   }
   return Status::Ok();
+}
+
+// (az, el) of the spot seen from the pose, minus the beam's, radians.
+Eigen::Vector2d AngularResidual(const Eigen::Matrix3d& R, const Eigen::Vector3d& t,
+                                const Eigen::Vector3d& p, double az, double el) {
+  const Eigen::Vector3d q = R.transpose() * (p - t);
+  return Eigen::Vector2d(WrapAngleRad(AzimuthRad(q) - az), ElevationRad(q) - el);
 }
 
 // Squared sine of the angle between bearing f (unit) and q; 1 when behind.
@@ -193,57 +202,104 @@ std::vector<double> NormalizedResiduals(const Data& data, const std::vector<Eige
       out[i] = std::numeric_limits<double>::infinity();
       continue;
     }
-    (*raw)[i] = AzElCostFunction::AngularResidual(R, t, data.points[i], data.az[i], data.el[i]);
+    (*raw)[i] = AngularResidual(R, t, data.points[i], data.az[i], data.el[i]);
     out[i] = (W[i] * (*raw)[i]).norm();
   }
   return out;
 }
 
-struct CeresOutcome {
-  bool usable = false;
+struct RefineOutcome {
+  bool ok = false;
   int iterations = 0;
 };
 
-CeresOutcome SolveWithCeres(const Data& data, const std::vector<Eigen::Matrix2d>& W,
-                            const std::vector<char>& use, const LocateOptions& options,
-                            double quat_xyzw[4], double origin[3]) {
-  static const ceres::EigenQuaternionManifold kQuaternionManifold;
-  const bool weighted = !data.covs.empty();
-  const double a = weighted ? options.loss_scale : options.loss_scale_unweighted_rad;
-  std::unique_ptr<ceres::LossFunction> loss;
-  if (options.loss == RobustLoss::kHuber) loss = std::make_unique<ceres::HuberLoss>(a);
-  if (options.loss == RobustLoss::kCauchy) loss = std::make_unique<ceres::CauchyLoss>(a);
-
-  std::deque<AzElCostFunction> costs;  // CostFunction is not movable
+// One Levenberg-Marquardt solve (ceres::TinySolver) of the spots in `use`,
+// each residual whitened by W_i and scaled by sqrt(robust_weight_i).
+RefineOutcome RefineOnce(const Data& data, const std::vector<Eigen::Matrix2d>& W,
+                         const std::vector<char>& use, const std::vector<double>& robust_weight,
+                         const LocateOptions& options, Eigen::Matrix3d* R, Eigen::Vector3d* t) {
+  std::vector<SourcePoseCostFunction::Spot> spots;
+  spots.reserve(data.points.size());
   for (size_t i = 0; i < data.points.size(); ++i) {
-    costs.emplace_back(data.points[i], data.az[i], data.el[i], W[i]);
+    if (!use[i]) continue;
+    spots.push_back({data.points[i], data.bearings[i], std::sqrt(robust_weight[i]) * W[i]});
   }
-  ceres::Problem::Options problem_options;
-  problem_options.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-  problem_options.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-  problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-  problem_options.enable_fast_removal = false;
-  ceres::Problem problem(problem_options);
-  problem.AddParameterBlock(quat_xyzw, 4, const_cast<ceres::EigenQuaternionManifold*>(&kQuaternionManifold));
-  problem.AddParameterBlock(origin, 3);
-  for (size_t i = 0; i < costs.size(); ++i) {
-    if (use[i]) problem.AddResidualBlock(&costs[i], loss.get(), quat_xyzw, origin);
+  // TinySolver stops when |dx| < parameter_tolerance * (|x| + parameter_tolerance).
+  // To make that "a step below parameter_tolerance times the scene size", the
+  // origin offset is expressed from a reference point one scene size D away:
+  // x = (dtheta, dt + D e_x), so |x| ~ D throughout the solve.
+  double D = 0.0;
+  for (const auto& sp : spots) D += (sp.point_in_scene - *t).norm();
+  D /= static_cast<double>(std::max<size_t>(1, spots.size()));
+  const Eigen::Vector3d reference_offset(D, 0.0, 0.0);
+  const SourcePoseCostFunction cost(std::move(spots), *R, *t - reference_offset);
+  Eigen::Matrix<double, 6, 1> x;
+  x << 0.0, 0.0, 0.0, reference_offset;
+  // TinySolver's function tolerance is absolute: make it relative to the
+  // initial cost.
+  Eigen::VectorXd r0(cost.num_residuals());
+  const double* params[1] = {x.data()};
+  RefineOutcome out;
+  if (!cost.Evaluate(params, r0.data(), nullptr)) return out;
+  using Adapter = ceres::TinySolverCostFunctionAdapter<Eigen::Dynamic, 6>;
+  const Adapter function(cost);
+  ceres::TinySolver<Adapter> solver;
+  solver.options.max_num_iterations = options.max_iterations;
+  solver.options.function_tolerance = std::max(options.function_tolerance * 0.5 * r0.squaredNorm(),
+                                               std::numeric_limits<double>::min());
+  solver.options.gradient_tolerance = options.gradient_tolerance;
+  solver.options.parameter_tolerance = options.parameter_tolerance;
+  solver.options.cost_threshold = 0.0;
+  // Start close to Gauss-Newton: the RANSAC pose is near the optimum, and
+  // LM damping of 1e-4 of the diagonal would stall the solve along the weak
+  // rotation-translation direction. Failed steps still raise the damping.
+  solver.options.initial_trust_region_radius = 1e12;
+  const auto& summary = solver.Solve(function, &x);
+  out.iterations = summary.iterations;
+  out.ok = x.allFinite() && std::isfinite(summary.final_cost);
+  if (out.ok) {
+    *R = cost.Rotation(x.data());
+    *t = cost.Origin(x.data());
   }
-  ceres::Solver::Options solver_options;
-  solver_options.linear_solver_type = ceres::DENSE_QR;
-  solver_options.max_num_iterations = options.max_iterations;
-  solver_options.function_tolerance = options.function_tolerance;
-  solver_options.gradient_tolerance = options.gradient_tolerance;
-  solver_options.parameter_tolerance = options.parameter_tolerance;
-  solver_options.logging_type = ceres::SILENT;
-  solver_options.minimizer_progress_to_stdout = false;
-  solver_options.num_threads = 1;
-  ceres::Solver::Summary summary;
-  ceres::Solve(solver_options, &problem, &summary);
-  CeresOutcome out;
-  out.usable = summary.IsSolutionUsable();
-  out.iterations = static_cast<int>(summary.iterations.size());
   return out;
+}
+
+// d rho / d s of the robust loss at s = |W r|^2 (IRLS weight).
+double RobustWeight(RobustLoss loss, double a, double s) {
+  switch (loss) {
+    case RobustLoss::kNone: return 1.0;
+    case RobustLoss::kHuber: return s <= a * a ? 1.0 : a / std::sqrt(s);
+    case RobustLoss::kCauchy: return 1.0 / (1.0 + s / (a * a));
+  }
+  return 1.0;
+}
+
+// Least squares, or with a robust loss, iteratively reweighted least squares
+// (the fixed point is the M-estimate of that loss).
+RefineOutcome Refine(const Data& data, const std::vector<Eigen::Matrix2d>& W,
+                     const std::vector<char>& use, const LocateOptions& options,
+                     Eigen::Matrix3d* R, Eigen::Vector3d* t) {
+  const int n = static_cast<int>(data.points.size());
+  std::vector<double> weight(n, 1.0);
+  const double a = data.covs.empty() ? options.loss_scale_unweighted_rad : options.loss_scale;
+  RefineOutcome total;
+  const int rounds = options.loss == RobustLoss::kNone ? 1 : 20;
+  for (int round = 0; round < rounds; ++round) {
+    const RefineOutcome once = RefineOnce(data, W, use, weight, options, R, t);
+    total.iterations += once.iterations;
+    total.ok = once.ok;
+    if (!once.ok || options.loss == RobustLoss::kNone) break;
+    double change = 0.0;
+    for (int i = 0; i < n; ++i) {
+      const Eigen::Vector2d r =
+          AngularResidual(*R, *t, data.points[i], data.az[i], data.el[i]);
+      const double w = RobustWeight(options.loss, a, (W[i] * r).squaredNorm());
+      change = std::max(change, std::abs(w - weight[i]));
+      weight[i] = w;
+    }
+    if (change < 1e-9) break;
+  }
+  return total;
 }
 
 }  // namespace
@@ -382,17 +438,10 @@ Result<LocateResult> LocateSource(const BeamPattern& pattern,
                                 " of " + std::to_string(n) + " are consistent (at least " +
                                 Num(100.0 * options.min_inlier_fraction) + "% needed)");
     }
-    Eigen::Quaterniond quat(R);
-    double quat_xyzw[4] = {quat.x(), quat.y(), quat.z(), quat.w()};
-    double origin[3] = {t.x(), t.y(), t.z()};
-    const CeresOutcome ceres_out = SolveWithCeres(data, W, use, options, quat_xyzw, origin);
-    if (!ceres_out.usable) return Status::NoSolution("the pose refinement failed to converge");
-    result.solver_iterations += ceres_out.iterations;
-    R = Eigen::Quaterniond(quat_xyzw[3], quat_xyzw[0], quat_xyzw[1], quat_xyzw[2])
-            .normalized()
-            .toRotationMatrix();
-    t = Eigen::Vector3d(origin[0], origin[1], origin[2]);
-    if (round == 0) OPL_RETURN_IF_ERROR(Whitening(data, R, t, &W));
+    const RefineOutcome refined = Refine(data, W, use, options, &R, &t);
+    if (!refined.ok) return Status::NoSolution("the pose refinement failed");
+    result.solver_iterations += refined.iterations;
+    OPL_RETURN_IF_ERROR(Whitening(data, R, t, &W));
 
     norms = NormalizedResiduals(data, W, R, t, &raw);
     std::vector<double> inlier_norms;

@@ -18,6 +18,8 @@ BeamPattern::BeamPattern(int beams_per_side, std::vector<Beam> beams)
             [](const Beam& a, const Beam& b) { return a.id < b.id; });
   const int n2 = beams_per_side_ > 0 ? beams_per_side_ * beams_per_side_ : 0;
   index_by_id_.assign(static_cast<size_t>(n2) + 1, -1);
+  directions_.reserve(beams_.size());
+  for (const Beam& b : beams_) directions_.push_back(b.DirectionInSource());
   for (size_t i = 0; i < beams_.size(); ++i) {
     const int id = beams_[i].id;
     if (id >= 1 && id <= n2 && index_by_id_[id] < 0) index_by_id_[id] = static_cast<int>(i);

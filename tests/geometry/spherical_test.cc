@@ -48,6 +48,23 @@ TEST(Spherical, AnalyticJacobianMatchesAutoDiff) {
   }
 }
 
+TEST(Spherical, SmallAngleAtan2MatchesStdAtan2) {
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  double worst = 0.0;
+  for (int i = 0; i < 200000; ++i) {
+    // Ratios across the series' range and beyond it (the fallback).
+    const double c = std::exp(6.0 * u(rng)) * (i % 17 == 0 ? -1.0 : 1.0);
+    const double s = c * 0.2 * u(rng) * std::pow(10.0, 4.0 * u(rng) - 2.0);
+    const double ref = std::atan2(s, c);
+    const double got = SmallAngleAtan2(s, c);
+    worst = std::max(worst, std::abs(got - ref) / std::max(std::abs(ref), 1e-300));
+  }
+  EXPECT_LT(worst, 4e-16);
+  EXPECT_EQ(SmallAngleAtan2(0.0, 1.0), 0.0);
+  EXPECT_DOUBLE_EQ(SmallAngleAtan2(1.0, -1.0), std::atan2(1.0, -1.0));
+}
+
 TEST(Spherical, WrapAngle) {
   EXPECT_NEAR(WrapAngleRad(3 * M_PI / 2), -M_PI / 2, 1e-15);
   EXPECT_NEAR(WrapAngleRad(-3 * M_PI / 2), M_PI / 2, 1e-15);

@@ -17,14 +17,19 @@
 // No starting guess is needed: the problem is a camera resection with known
 // bearing vectors, initialised by a minimal 3-point solver (P3P, in the spirit
 // of Lambda Twist, Persson & Nordberg, ECCV 2018) inside RANSAC, then refined by
-// Ceres with analytic Jacobians. Any rotation of the source in the scene works.
+// Levenberg-Marquardt (ceres::TinySolver) on SourcePoseCostFunction, whose
+// analytic Jacobians are checked against autodiff. Any rotation works.
 //
-// Outliers: spots whose whitened residual norm exceeds
-// `outlier_threshold` (in standard deviations; without covariances, in units of
-// a robust estimate of the angular noise) are flagged and left out of the final
-// solve. Covariance of the pose: (J^T J)^-1 of the whitened problem at the
-// solution; with covariances given it is used as is, without them it is scaled
-// by the a-posteriori variance factor (RSS / (2N - 6)).
+// Outliers: RANSAC's inliers are refined; then every spot whose whitened
+// residual norm exceeds `outlier_threshold` standard deviations is flagged and
+// left out, and the solve repeats until the inlier set is stable. The standard
+// deviation is 1 with covariances (or the robust estimate from the residuals,
+// if larger: understated sigmas do not flag good spots), and without them the
+// robust estimate itself. An optional robust loss (Huber, Cauchy) is solved by
+// iteratively reweighted least squares. Covariance of the pose: (J^T J)^-1 of
+// the whitened problem over the inliers at the solution; with covariances given
+// it is used as is, without them it is scaled by the a-posteriori variance
+// factor (RSS / (2N - 6)). A robust loss's weights are not in the covariance.
 #pragma once
 
 #include <cstdint>
@@ -48,10 +53,11 @@ enum class RobustLoss {
 };
 
 struct LocateOptions {
-  // Robust loss on each spot's whitened squared residual during the first
-  // solve; `loss_scale` is `a` above, in standard deviations (or radians when
-  // spots have no covariance). Default: Cauchy at 3 sigma / 1 mrad.
-  RobustLoss loss = RobustLoss::kCauchy;
+  // Robust loss on each spot's whitened squared residual; `loss_scale` is `a`
+  // above, in standard deviations (or radians when spots have no covariance).
+  // Default none: gross outliers are removed by RANSAC and flagging, and plain
+  // least squares keeps the estimate efficient and its covariance exact.
+  RobustLoss loss = RobustLoss::kNone;
   double loss_scale = 3.0;
   double loss_scale_unweighted_rad = 1e-3;
 
@@ -77,11 +83,17 @@ struct LocateOptions {
   // spots are inliers of this guess; otherwise RANSAC runs as usual.
   std::optional<Rigid3d> initial_scene_from_source;
 
-  // Ceres Levenberg-Marquardt settings.
-  int max_iterations = 100;
-  double function_tolerance = 1e-16;
-  double gradient_tolerance = 1e-16;
-  double parameter_tolerance = 1e-14;
+  // Levenberg-Marquardt (ceres::TinySolver) settings for each refinement.
+  int max_iterations = 50;
+  // Stop when the cost changes by less than this fraction of its initial value.
+  double function_tolerance = 1e-15;
+  // Stop when the max-norm of the (Jacobi-scaled) gradient falls below this;
+  // 0 disables.
+  double gradient_tolerance = 0.0;
+  // Stop when the step is smaller than this times the scene size (the mean
+  // distance from the origin to the spots): rad for the rotation, scene units
+  // for the origin.
+  double parameter_tolerance = 1e-12;
 
   // Checks every field; the message names the field, its value and the rule.
   Status Validate() const;

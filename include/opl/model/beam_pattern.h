@@ -49,10 +49,16 @@ class BeamPattern {
   // The beam with this id, or nullptr when the pattern lacks it or the id is out
   // of range.
   const Beam* Find(int id) const;
+  // Unit direction of a beam of this pattern (precomputed from az/el).
+  // Precondition: Find(id) != nullptr.
+  const Eigen::Vector3d& DirectionInSource(int id) const {
+    return directions_[index_by_id_[id]];
+  }
 
  private:
   int beams_per_side_ = 0;
   std::vector<Beam> beams_;       // sorted by id
+  std::vector<Eigen::Vector3d> directions_;  // parallel to beams_
   std::vector<int> index_by_id_;  // id -> index into beams_, or -1
 };
 

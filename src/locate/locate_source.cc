@@ -176,14 +176,17 @@ Status Whitening(const Data& data, const Eigen::Matrix3d& R, const Eigen::Vector
     const Eigen::Matrix<double, 2, 3> Jp = AzElJacobian(q) * R.transpose();
     Eigen::Matrix2d C = Jp * data.covs[i] * Jp.transpose();
     if (data.beams[i]->cov_azel_rad2) C += *data.beams[i]->cov_azel_rad2;
-    Eigen::LLT<Eigen::Matrix2d> llt(C);
-    if (llt.info() != Eigen::Success || !(llt.matrixL()(1, 1) > 0.0) ||
-        !(llt.matrixL()(0, 0) > 0.0)) {
+    // C = L L^T with L = [a 0; b c]; W = L^-1 = [1/a 0; -b/(a c) 1/c].
+    const double a = C(0, 0) > 0.0 ? std::sqrt(C(0, 0)) : 0.0;
+    const double b = a > 0.0 ? C(1, 0) / a : 0.0;
+    const double c2 = C(1, 1) - b * b;
+    if (!(a > 0.0 && c2 > 0.0) || !std::isfinite(a) || !std::isfinite(c2)) {
       return Status::InvalidArgument("spot of beam " + std::to_string(data.beam_ids[i]) +
                                      ": its covariance gives no angular uncertainty "
                                      "(zero or singular across the ray)");
     }
-    (*W)[i] = llt.matrixL().toDenseMatrix().inverse();
+    const double c = std::sqrt(c2);
+    (*W)[i] << 1.0 / a, 0.0, -b / (a * c), 1.0 / c;
   }
   return Status::Ok();
 }

@@ -1,0 +1,57 @@
+// What every OPL command-line tool shares: exit codes, the --help footer that
+// documents them, CLI11 parsing with usage errors mapped to exit code 2, and
+// one-line error messages "<tool>: <message>" on stderr (docs/cli.md).
+#pragma once
+
+#include <functional>
+#include <optional>
+#include <string>
+
+#include <CLI/CLI.hpp>
+
+#include "opl/core/status.h"
+
+namespace opl {
+namespace cli {
+
+// Exit codes of every tool (docs/cli.md).
+enum ExitCode : int {
+  kExitOk = 0,
+  kExitInternalError = 1,  // an unexpected exception (a bug): please report
+  kExitUsage = 2,          // bad command line: unknown/missing option, not a number
+  kExitBadInput = 3,       // unreadable or malformed input file, invalid value
+  kExitNoSolution = 4,     // valid data that do not determine a pose or scale
+  kExitWriteFailed = 5,    // an output file could not be written
+};
+
+// The exit-code table and documentation pointers for a tool's --help footer,
+// after the tool's `examples` (already formatted lines).
+std::string HelpFooter(const std::string& examples);
+
+// Exit code for a Status from reading or processing inputs: NoSolution -> 4,
+// every other failure (InvalidArgument, ParseError, IoError) -> 3.
+int ExitCodeForInputStatus(const Status& status);
+
+// Prints "<tool>: <message>" on stderr and returns `exit_code`.
+int Fail(const std::string& tool, const std::string& message, int exit_code);
+// Fail with the status's message and ExitCodeForInputStatus.
+int FailInput(const std::string& tool, const Status& status);
+// Fail with the status's message and kExitWriteFailed.
+int FailWrite(const std::string& tool, const Status& status);
+
+// Parses the command line. Returns std::nullopt when the tool should go on, or
+// the exit code to return now: 0 after --help (printed on stdout), 2 after a
+// usage error (printed on stderr as "<tool>: <error> (see --help)").
+std::optional<int> ParseCommandLine(CLI::App& app, int argc, char** argv);
+
+// Runs `body`, turning an escaping exception into "<tool>: internal error:
+// ..." and kExitInternalError. The library itself does not throw on bad input;
+// this is a last line of defence (e.g. std::bad_alloc).
+int RunTool(const std::string& tool, const std::function<int()>& body);
+
+// Writes `text` to stdout and flushes; kExitWriteFailed (with a message) when
+// stdout cannot be written (e.g. a closed pipe or a full disk), else kExitOk.
+int PrintToStdout(const std::string& tool, const std::string& text);
+
+}  // namespace cli
+}  // namespace opl

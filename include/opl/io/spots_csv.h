@@ -1,0 +1,63 @@
+// Spots CSV: measured 3D points of laser spots, one spot a row.
+// Full description: docs/formats.md, "Spots CSV".
+//
+//   source,beam,x,y,z,sx,sy,sz
+//   A,61,1012.5,3.25,-0.5,0.1,0.1,0.1
+//
+// Columns are found by their header names (case-insensitive), in any order;
+// unknown columns are ignored. Required: `source` (a source name of the module
+// calibration), `beam` (the beam id, an integer), `x`, `y`, `z` (scene units).
+// Optional: `sx`, `sy`, `sz` (standard deviations, scene units; all three or
+// none; > 0 and finite), giving SpotObservation::cov_in_scene = diag(sx^2,
+// sy^2, sz^2); and `slice` (an integer >= 0, the calibration slice a spot was
+// measured in), returned alongside the spots. Fields follow RFC 4180 (quotes
+// for names holding commas or quotes); blank lines are skipped. Each Spot's
+// `where` is "<file>:<line>".
+//
+// Errors are ParseErrors naming the file and line (and the field), e.g.
+//   "spots.csv:14: field 'x': not a number: 'abc'"
+//   "spots.csv:9: field 'y': not finite: 'nan'"
+//   "spots.csv:3: expected 5 fields (as the header), found 4"
+//   "spots.csv:1: missing column 'beam'"
+// An empty `source` or `beam` is an error for now ("empty source name",
+// "empty beam id"); a later format version may allow unassigned spots.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "opl/core/status.h"
+#include "opl/model/spot.h"
+
+namespace opl {
+
+struct SpotsCsvData {
+  std::vector<Spot> spots;  // in file order
+  // The `slice` column, one entry per spot, when the file has that column;
+  // empty otherwise.
+  std::vector<int> slices;
+  bool has_sigmas = false;  // the file has sx, sy, sz columns
+};
+
+// Parses CSV text; `name` (the file path) is used in `where` and in messages.
+Result<SpotsCsvData> ParseSpotsCsv(const std::string& text, const std::string& name);
+
+// Reads a file: IoError when it cannot be read, else as ParseSpotsCsv.
+Result<SpotsCsvData> ReadSpotsCsv(const std::string& path);
+
+// An extra column written after the standard ones (one value per spot).
+struct SpotsCsvExtraColumn {
+  std::string name;
+  std::vector<std::string> values;
+};
+
+// Formats spots as a Spots CSV: `source,beam,x,y,z`, then `sx,sy,sz` when
+// every spot has a covariance (the square roots of its diagonal: off-diagonal
+// terms are not representable and are dropped), then `extra` columns. Numbers
+// are written with the shortest text that reads back exactly. InvalidArgument
+// when an extra column's size differs from the number of spots, or a value is
+// not finite.
+Result<std::string> FormatSpotsCsv(const std::vector<Spot>& spots,
+                                   const std::vector<SpotsCsvExtraColumn>& extra = {});
+
+}  // namespace opl

@@ -1,0 +1,76 @@
+// The measurement pipeline: from a module calibration and the measured spots of
+// one scene to the scene's scale factor. This is the runnable part of the
+// opl_measure tool as a library function (apps/opl_measure.cc only parses
+// options, reads files and prints).
+//
+//   Result<ModuleCalibration> cal = ReadModuleCalibrationJson("cal.json");
+//   Result<SpotsCsvData> spots = ReadSpotsCsv("spots.csv");
+//   Result<MeasureReport> report = MeasureScale(*cal, spots->spots, MeasureOptions());
+//   std::cout << report->ToText();      // or ToJson()
+//   // every scene coordinate times report->scale.scale_factor is in mm
+//
+// Steps: every spot is checked against the calibration (its source must exist,
+// its beam must be in that source's pattern, no (source, beam) pair twice);
+// every source with spots is located (LocateSource); the scale factor is
+// computed from the calibrated separations between located sources
+// (ComputeScaleFactor). A calibrated source with no spots at all is not
+// located and is listed in MeasureReport::sources_without_spots; the scale
+// then uses the separations between the other sources.
+//
+// Units: spot coordinates are in "scene units" (whatever the photogrammetry
+// used); calibrated lengths are mm; the scale factor is mm per scene unit.
+#pragma once
+
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "opl/core/status.h"
+#include "opl/locate/locate_source.h"
+#include "opl/model/module_calibration.h"
+#include "opl/model/spot.h"
+#include "opl/scale/scale_factor.h"
+
+namespace opl {
+
+struct MeasureOptions {
+  // Options of every source's locate (LocateSource); defaults as documented
+  // there.
+  LocateOptions locate;
+
+  // Checks every field (delegates to LocateOptions::Validate); the message
+  // names the field.
+  Status Validate() const;
+};
+
+struct MeasureReport {
+  // The located sources, in the order of the calibration, each with its name.
+  std::vector<std::pair<std::string, LocateResult>> sources;
+  // Calibrated sources that had no spot (not located).
+  std::vector<std::string> sources_without_spots;
+  ScaleResult scale;
+
+  // A readable summary: per source the origin (scene units), rotation angles
+  // (deg), origin standard deviations, RMS residual (microradians), spots used
+  // and outlier beam ids; per length L_photo +- u, L_cal, s_ij; then s +- u(s)
+  // and, with two or more lengths, the consistency chi2/dof.
+  std::string ToText() const;
+  // One JSON object (format "opl.measure_report", version 1): sources[],
+  // lengths[], scale_factor, u_scale_factor, chi2, dof, ... (docs/formats.md,
+  // "Measure report JSON"). Doubles written to round-trip exactly.
+  std::string ToJson() const;
+};
+
+// Errors:
+//  - InvalidArgument: invalid options or calibration; a spot naming a source
+//    not in the calibration ("spots.csv:14: unknown source 'C' (calibration
+//    has A, B)"); the same (source, beam) twice (names both lines); a beam id
+//    the source's pattern lacks; a non-finite spot;
+//  - NoSolution: a source whose spots do not determine its pose (too few,
+//    degenerate; "source 'A': " + LocateSource's message), or no calibrated
+//    separation joins two located sources.
+Result<MeasureReport> MeasureScale(const ModuleCalibration& calibration,
+                                   const std::vector<Spot>& spots,
+                                   const MeasureOptions& options = MeasureOptions());
+
+}  // namespace opl

@@ -1,0 +1,115 @@
+#include "opl/io/atomic_file.h"
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <cerrno>
+#include <cstring>
+#include <fstream>
+#include <sstream>
+
+namespace opl {
+namespace {
+
+std::string ErrnoText(int err) { return std::strerror(err); }
+
+Status WriteError(const std::string& path, const std::string& what, int err) {
+  return Status::IoError(path + ": cannot write: " + what +
+                         (err != 0 ? ": " + ErrnoText(err) : std::string()));
+}
+
+// Splits "dir/name" into ("dir", "name"); "name" gives (".", "name").
+void SplitPath(const std::string& path, std::string* dir, std::string* name) {
+  const size_t slash = path.find_last_of('/');
+  if (slash == std::string::npos) {
+    *dir = ".";
+    *name = path;
+  } else {
+    *dir = slash == 0 ? "/" : path.substr(0, slash);
+    *name = path.substr(slash + 1);
+  }
+}
+
+// Writes all of `data`, retrying on EINTR and short writes. Returns 0 or errno.
+int WriteAll(int fd, const char* data, size_t size) {
+  while (size > 0) {
+    const ssize_t n = ::write(fd, data, size);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      return errno;
+    }
+    data += n;
+    size -= static_cast<size_t>(n);
+  }
+  return 0;
+}
+
+}  // namespace
+
+Status WriteFileAtomically(const std::string& path, const std::string& contents) {
+  std::string dir, name;
+  SplitPath(path, &dir, &name);
+  if (name.empty() || name == "." || name == "..") {
+    return WriteError(path, "not a file name", 0);
+  }
+  struct stat target_stat;
+  const bool target_exists = ::stat(path.c_str(), &target_stat) == 0;
+
+  // A fresh temporary name in the same directory (so that rename is atomic).
+  static std::atomic<unsigned> counter{0};
+  std::string temp_path;
+  int fd = -1;
+  for (int attempt = 0; attempt < 100 && fd < 0; ++attempt) {
+    temp_path = (dir == "/" ? std::string("/") : dir + "/") + "." + name + ".tmp-" +
+                std::to_string(::getpid()) + "-" + std::to_string(counter++);
+    fd = ::open(temp_path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+    if (fd < 0 && errno != EEXIST) break;
+  }
+  if (fd < 0) return WriteError(path, "cannot create a temporary file in '" + dir + "'", errno);
+
+  auto fail = [&](const std::string& what, int err) {
+    if (fd >= 0) ::close(fd);
+    ::unlink(temp_path.c_str());
+    return WriteError(path, what, err);
+  };
+  // Keep the permissions of a file we replace. (A directory at `path` is not
+  // checked up front: rename fails on it, which cleans up like any failure.)
+  if (target_exists && S_ISREG(target_stat.st_mode) &&
+      ::fchmod(fd, target_stat.st_mode & 07777) != 0) {
+    return fail("cannot set permissions", errno);
+  }
+  if (int err = WriteAll(fd, contents.data(), contents.size()); err != 0) {
+    return fail("write failed", err);
+  }
+  if (::fsync(fd) != 0) return fail("fsync failed", errno);
+  const int close_result = ::close(fd);
+  fd = -1;
+  if (close_result != 0) return fail("close failed", errno);
+  if (::rename(temp_path.c_str(), path.c_str()) != 0) return fail("rename failed", errno);
+
+  // Make the rename durable; failure here does not undo a completed write.
+  const int dir_fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (dir_fd >= 0) {
+    (void)::fsync(dir_fd);
+    ::close(dir_fd);
+  }
+  return Status::Ok();
+}
+
+Result<std::string> ReadFileToString(const std::string& path) {
+  struct stat st;
+  if (::stat(path.c_str(), &st) != 0) {
+    return Status::IoError(path + ": cannot open: " + ErrnoText(errno));
+  }
+  if (S_ISDIR(st.st_mode)) return Status::IoError(path + ": cannot read: is a directory");
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return Status::IoError(path + ": cannot open: " + ErrnoText(errno));
+  std::ostringstream buffer;
+  buffer << in.rdbuf();
+  if (in.bad()) return Status::IoError(path + ": read error");
+  return buffer.str();
+}
+
+}  // namespace opl

@@ -1,0 +1,59 @@
+// Private to src/io: a small RFC 4180 CSV reader shared by the spots and points
+// readers, and the field-level parsing both need.
+//
+// Records end at "\n" or "\r\n". A field that starts with '"' is quoted: it may
+// hold commas, line breaks and '""' (a literal quote), and the closing quote
+// must end the field. Unquoted fields have surrounding spaces and tabs trimmed;
+// quoted fields are kept exactly. Blank lines (only whitespace) are skipped.
+// A UTF-8 byte-order mark at the start is ignored. Every record must have as
+// many fields as the header. Errors are ParseErrors "<name>:<line>: <what>",
+// with the line where the record starts (1-based).
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "opl/core/status.h"
+
+namespace opl {
+namespace csv_internal {
+
+struct CsvRecord {
+  int line = 0;                     // 1-based line where the record starts
+  std::vector<std::string> fields;  // values (unquoted, unescaped, trimmed)
+  std::vector<std::string> raw;     // each field's exact text in the file
+};
+
+struct CsvTable {
+  CsvRecord header;
+  std::vector<CsvRecord> rows;
+
+  // Index of the column whose (case-insensitive) name is `name`, or -1.
+  int FindColumn(const std::string& name) const;
+};
+
+// Parses `text`; `name` (usually the file path) prefixes every message. Fails on
+// an empty input (no header), an empty or duplicate column name, a malformed
+// quoted field or a record whose field count differs from the header's.
+Result<CsvTable> ParseCsv(const std::string& text, const std::string& name);
+
+// The field quoted per RFC 4180 when it needs it (comma, quote, line break,
+// leading/trailing whitespace or empty), otherwise unchanged.
+std::string QuoteCsvField(const std::string& field);
+
+// "<name>:<line>: field '<column>': " — the prefix of a field's messages.
+std::string FieldContext(const std::string& name, int line, const std::string& column);
+
+// A finite double: decimal or scientific notation, optional leading '+'.
+// ParseError "<context>not a number: 'abc'" / "not finite: 'nan'" /
+// "out of range: '1e999'" / "empty value".
+Result<double> ParseFiniteDouble(const std::string& text, const std::string& context);
+
+// A decimal integer that fits in int.
+Result<int> ParseInt(const std::string& text, const std::string& context);
+
+// The shortest decimal text that reads back as exactly `value` (round trip).
+std::string FormatDoubleExact(double value);
+
+}  // namespace csv_internal
+}  // namespace opl

@@ -1,0 +1,225 @@
+#include "opl/pipeline/measure.h"
+
+#include <cmath>
+#include <cstdio>
+#include <map>
+
+#include <nlohmann/json.hpp>
+
+namespace opl {
+namespace {
+
+constexpr double kRadToDeg = 180.0 / M_PI;
+
+std::string Format(const char* fmt, double v) {
+  char buffer[64];
+  std::snprintf(buffer, sizeof(buffer), fmt, v);
+  return buffer;
+}
+
+std::string Triple(const char* fmt, const Eigen::Vector3d& v) {
+  return "(" + Format(fmt, v.x()) + ", " + Format(fmt, v.y()) + ", " + Format(fmt, v.z()) + ")";
+}
+
+std::string JoinInts(const std::vector<int>& ids) {
+  std::string out;
+  for (size_t i = 0; i < ids.size(); ++i) out += (i ? ", " : "") + std::to_string(ids[i]);
+  return out;
+}
+
+nlohmann::ordered_json VectorJson(const Eigen::Vector3d& v) {
+  return nlohmann::ordered_json::array({v.x(), v.y(), v.z()});
+}
+
+nlohmann::ordered_json MatrixJson(const Eigen::Matrix3d& m) {
+  nlohmann::ordered_json rows = nlohmann::ordered_json::array();
+  for (int r = 0; r < 3; ++r) rows.push_back({m(r, 0), m(r, 1), m(r, 2)});
+  return rows;
+}
+
+Eigen::Vector3d StdDevs(const Eigen::Matrix3d& cov) {
+  return cov.diagonal().cwiseMax(0.0).cwiseSqrt();
+}
+
+}  // namespace
+
+Status MeasureOptions::Validate() const {
+  Status st = locate.Validate();
+  if (!st.ok()) return Status::InvalidArgument("locate options: " + st.message());
+  return Status::Ok();
+}
+
+Result<MeasureReport> MeasureScale(const ModuleCalibration& calibration,
+                                   const std::vector<Spot>& spots,
+                                   const MeasureOptions& options) {
+  OPL_RETURN_IF_ERROR(options.Validate());
+  if (Status st = calibration.Validate(); !st.ok()) {
+    return Status::InvalidArgument("module calibration: " + st.message());
+  }
+  std::string known_sources;
+  for (const SourceCalibration& s : calibration.sources) {
+    known_sources += (known_sources.empty() ? "" : ", ") + s.name;
+  }
+
+  // Check every spot against the calibration, then group by source.
+  std::map<std::pair<std::string, int>, size_t> first_index;  // (source, beam) -> spot
+  std::map<std::string, std::vector<SpotObservation>> by_source;
+  for (size_t i = 0; i < spots.size(); ++i) {
+    const Spot& spot = spots[i];
+    const std::string where = spot.where.empty() ? "spot " + std::to_string(i + 1) : spot.where;
+    const int beam_id = spot.observation.beam_id;
+    const SourceCalibration* source = calibration.FindSource(spot.source);
+    if (source == nullptr) {
+      return Status::InvalidArgument(where + ": unknown source '" + spot.source +
+                                     "' (the calibration has " + known_sources + ")");
+    }
+    if (source->pattern.Find(beam_id) == nullptr) {
+      const int n = source->pattern.beams_per_side();
+      return Status::InvalidArgument(
+          where + ": source '" + spot.source + "' has no beam " + std::to_string(beam_id) +
+          " in the calibration (" + std::to_string(n) + " x " + std::to_string(n) + " grid, " +
+          std::to_string(source->pattern.beams().size()) + " beams calibrated)");
+    }
+    auto [it, inserted] = first_index.emplace(std::make_pair(spot.source, beam_id), i);
+    if (!inserted) {
+      const Spot& first = spots[it->second];
+      const std::string first_where =
+          first.where.empty() ? "spot " + std::to_string(it->second + 1) : first.where;
+      return Status::InvalidArgument(where + ": duplicate spot of source '" + spot.source +
+                                     "' beam " + std::to_string(beam_id) + " (also at " +
+                                     first_where + ")");
+    }
+    if (!spot.observation.point_in_scene.allFinite()) {
+      return Status::InvalidArgument(where + ": point is not finite");
+    }
+    by_source[spot.source].push_back(spot.observation);
+  }
+
+  MeasureReport report;
+  std::vector<LocatedOrigin> located;
+  for (const SourceCalibration& source : calibration.sources) {
+    auto group = by_source.find(source.name);
+    if (group == by_source.end()) {
+      report.sources_without_spots.push_back(source.name);
+      continue;
+    }
+    Result<LocateResult> result = LocateSource(source.pattern, group->second, options.locate);
+    if (!result.ok()) {
+      return Status(result.status().code(),
+                    "source '" + source.name + "': " + result.status().message());
+    }
+    LocatedOrigin origin;
+    origin.name = source.name;
+    origin.origin_in_scene = result->scene_from_source.translation;
+    origin.origin_covariance = result->origin_covariance;
+    located.push_back(origin);
+    report.sources.emplace_back(source.name, std::move(result).value());
+  }
+  if (located.empty()) return Status::NoSolution("no spots: no source could be located");
+
+  Result<ScaleResult> scale = ComputeScaleFactor(calibration, located);
+  if (!scale.ok()) {
+    std::string located_names;
+    for (const LocatedOrigin& o : located) {
+      located_names += (located_names.empty() ? "" : ", ") + o.name;
+    }
+    return Status(scale.status().code(),
+                  scale.status().message() + " (located: " + located_names + ")");
+  }
+  report.scale = std::move(scale).value();
+  return report;
+}
+
+std::string MeasureReport::ToText() const {
+  std::string out;
+  for (const auto& [name, r] : sources) {
+    const std::vector<int> outliers = r.OutlierBeamIds();
+    out += "Source " + name + ": " + std::to_string(r.num_spots) + " spots, " +
+           std::to_string(r.num_inliers) + " used, " + std::to_string(outliers.size()) +
+           " outliers" + (outliers.empty() ? "" : " (beams " + JoinInts(outliers) + ")") + "\n";
+    out += "  origin          " + Triple("%.6f", r.scene_from_source.translation) +
+           " scene units\n";
+    out += "  origin std dev  " + Triple("%.6f", StdDevs(r.origin_covariance)) + " scene units\n";
+    out += "  rotation x,y,z  " + Triple("%.6f", r.rotation_xyz_rad * kRadToDeg) +
+           " deg (R = Rx Ry Rz), std dev " +
+           Triple("%.6f", StdDevs(r.rotation_xyz_covariance) * kRadToDeg) + " deg\n";
+    out += "  rms residual    " + Format("%.3f", r.rms_residual_rad * 1e6) + " urad" +
+           (r.weighted ? ", chi2/dof " + Format("%.3f", r.variance_factor) +
+                             " (weighted by spot sigmas)"
+                       : std::string(" (unweighted; covariance from the residuals)")) +
+           "\n";
+  }
+  for (const std::string& name : sources_without_spots) {
+    out += "Source " + name + ": no spots, not located\n";
+  }
+  out += "Lengths (photo in scene units, cal in mm, s_ij in mm per scene unit):\n";
+  for (const LengthScale& l : scale.lengths) {
+    out += "  " + l.from + "-" + l.to + ": photo " + Format("%.6f", l.photo) + " +- " +
+           Format("%.6f", l.u_photo) + ", cal " + Format("%.6f", l.cal_mm) + " +- " +
+           Format("%.6f", l.u_cal_mm) + ", s_ij " + Format("%.9f", l.scale) + " +- " +
+           Format("%.9f", l.u_scale) + "\n";
+  }
+  out += "Scale factor s = " + Format("%.9f", scale.scale_factor) + " +- " +
+         Format("%.9f", scale.u_scale_factor) + " mm per scene unit (" +
+         Format("%.1f", scale.u_scale_factor / scale.scale_factor * 1e6) + " ppm, k = 1)\n";
+  if (scale.dof > 0) {
+    out += "Consistency chi2/dof = " + Format("%.3f", scale.chi2) + "/" +
+           std::to_string(scale.dof) + " = " +
+           Format("%.3f", scale.chi2 / scale.dof) + ", max normalized deviation " +
+           Format("%.3f", scale.max_normalized_deviation) + "\n";
+  }
+  return out;
+}
+
+std::string MeasureReport::ToJson() const {
+  using nlohmann::ordered_json;
+  ordered_json doc;
+  doc["format"] = "opl.measure_report";
+  doc["version"] = 1;
+  doc["units"] = {{"origin", "scene units"},
+                  {"origin_cov", "scene units^2"},
+                  {"rotation_xyz_rad", "rad"},
+                  {"rms_residual_urad", "microradians"},
+                  {"photo", "scene units"},
+                  {"cal", "mm"},
+                  {"scale_factor", "mm per scene unit"}};
+  ordered_json source_array = ordered_json::array();
+  for (const auto& [name, r] : sources) {
+    ordered_json s;
+    s["name"] = name;
+    s["origin"] = VectorJson(r.scene_from_source.translation);
+    s["origin_cov"] = MatrixJson(r.origin_covariance);
+    s["origin_std"] = VectorJson(StdDevs(r.origin_covariance));
+    s["rotation_xyz_rad"] = VectorJson(r.rotation_xyz_rad);
+    s["rotation_xyz_cov_rad2"] = MatrixJson(r.rotation_xyz_covariance);
+    s["rms_residual_urad"] = r.rms_residual_rad * 1e6;
+    s["variance_factor"] = r.variance_factor;
+    s["weighted"] = r.weighted;
+    s["n_spots"] = r.num_spots;
+    s["n_inliers"] = r.num_inliers;
+    s["outliers"] = r.OutlierBeamIds();
+    source_array.push_back(std::move(s));
+  }
+  doc["sources"] = std::move(source_array);
+  doc["sources_without_spots"] = sources_without_spots;
+  ordered_json lengths = ordered_json::array();
+  for (const LengthScale& l : scale.lengths) {
+    lengths.push_back({{"from", l.from},
+                       {"to", l.to},
+                       {"photo", l.photo},
+                       {"u_photo", l.u_photo},
+                       {"cal", l.cal_mm},
+                       {"u_cal", l.u_cal_mm},
+                       {"scale", l.scale},
+                       {"u_scale", l.u_scale}});
+  }
+  doc["lengths"] = std::move(lengths);
+  doc["scale_factor"] = scale.scale_factor;
+  doc["u_scale_factor"] = scale.u_scale_factor;
+  doc["chi2"] = scale.chi2;
+  doc["dof"] = scale.dof;
+  doc["max_normalized_deviation"] = scale.max_normalized_deviation;
+  return doc.dump(2) + "\n";
+}
+
+}  // namespace opl

@@ -1,0 +1,229 @@
+#include "opl/pipeline/measure.h"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "pipeline/synthetic_module.h"
+
+namespace opl {
+namespace {
+
+using testing_support::SceneTransform;
+using testing_support::SyntheticCalibration;
+using testing_support::SyntheticSpots;
+using ::testing::HasSubstr;
+
+TEST(MeasureScale, NoiseFreeSpotsGiveTheTrueScaleAndPoses) {
+  const ModuleCalibration cal = SyntheticCalibration(2);
+  SceneTransform scene;
+  scene.true_scale = 2.5;
+  const std::vector<Spot> spots = SyntheticSpots(cal, scene);
+  Result<MeasureReport> report = MeasureScale(cal, spots);
+  ASSERT_TRUE(report.ok()) << report.status().ToString();
+  ASSERT_EQ(report->sources.size(), 2u);
+  EXPECT_EQ(report->sources[0].first, "A");
+  EXPECT_EQ(report->sources[1].first, "B");
+  for (size_t i = 0; i < 2; ++i) {
+    const LocateResult& r = report->sources[i].second;
+    EXPECT_EQ(r.num_spots, 121);
+    EXPECT_EQ(r.num_inliers, 121);
+    const Eigen::Vector3d expected =
+        scene.SceneFromCalibration(cal.sources[i].calibration_from_source.translation);
+    EXPECT_LT((r.scene_from_source.translation - expected).norm(), 1e-8) << i;
+  }
+  ASSERT_EQ(report->scale.lengths.size(), 1u);
+  EXPECT_NEAR(report->scale.lengths[0].photo, cal.separations[0].length_mm / 2.5, 1e-9);
+  EXPECT_NEAR(report->scale.scale_factor, 2.5, 1e-9);
+  EXPECT_TRUE(report->sources_without_spots.empty());
+}
+
+TEST(MeasureScale, ThreeSourcesReportConsistency) {
+  const ModuleCalibration cal = SyntheticCalibration(3);
+  Result<MeasureReport> report = MeasureScale(cal, SyntheticSpots(cal));
+  ASSERT_TRUE(report.ok()) << report.status().ToString();
+  EXPECT_EQ(report->scale.lengths.size(), 3u);
+  EXPECT_EQ(report->scale.dof, 2);
+  EXPECT_NEAR(report->scale.scale_factor, 2.0, 1e-9);
+  EXPECT_THAT(report->ToText(), HasSubstr("Consistency chi2/dof = "));
+}
+
+TEST(MeasureScale, SourceWithoutSpotsIsListedAndTheOthersGiveTheScale) {
+  const ModuleCalibration cal = SyntheticCalibration(3);
+  std::vector<Spot> spots;
+  for (const Spot& s : SyntheticSpots(cal)) {
+    if (s.source != "B") spots.push_back(s);
+  }
+  Result<MeasureReport> report = MeasureScale(cal, spots);
+  ASSERT_TRUE(report.ok()) << report.status().ToString();
+  EXPECT_EQ(report->sources_without_spots, std::vector<std::string>{"B"});
+  ASSERT_EQ(report->scale.lengths.size(), 1u);
+  EXPECT_EQ(report->scale.lengths[0].from, "A");
+  EXPECT_EQ(report->scale.lengths[0].to, "C");
+  EXPECT_NEAR(report->scale.scale_factor, 2.0, 1e-9);
+  EXPECT_THAT(report->ToText(), HasSubstr("Source B: no spots, not located"));
+}
+
+TEST(MeasureScale, OutlierIsReportedByBeamId) {
+  const ModuleCalibration cal = SyntheticCalibration(2);
+  std::vector<Spot> spots = SyntheticSpots(cal);
+  // Beam 17 of source A, moved 5 mm (2.5 scene units) sideways.
+  for (Spot& s : spots) {
+    if (s.source == "A" && s.observation.beam_id == 17) {
+      s.observation.point_in_scene += Eigen::Vector3d(0.0, 0.0, 2.5);
+    }
+  }
+  Result<MeasureReport> report = MeasureScale(cal, spots);
+  ASSERT_TRUE(report.ok()) << report.status().ToString();
+  EXPECT_EQ(report->sources[0].second.OutlierBeamIds(), std::vector<int>{17});
+  EXPECT_TRUE(report->sources[1].second.OutlierBeamIds().empty());
+  EXPECT_NEAR(report->scale.scale_factor, 2.0, 1e-7);
+  EXPECT_THAT(report->ToText(), HasSubstr("Source A: 121 spots, 120 used, 1 outliers (beams 17)"));
+  const nlohmann::json j = nlohmann::json::parse(report->ToJson());
+  EXPECT_EQ(j["sources"][0]["outliers"], nlohmann::json::array({17}));
+  EXPECT_EQ(j["sources"][0]["n_spots"], 121);
+}
+
+TEST(MeasureScale, JsonHasTheDocumentedFieldsAndRoundTripsNumbers) {
+  const ModuleCalibration cal = SyntheticCalibration(2);
+  Result<MeasureReport> report = MeasureScale(cal, SyntheticSpots(cal));
+  ASSERT_TRUE(report.ok()) << report.status().ToString();
+  const nlohmann::json j = nlohmann::json::parse(report->ToJson());
+  EXPECT_EQ(j["format"], "opl.measure_report");
+  EXPECT_EQ(j["version"], 1);
+  ASSERT_EQ(j["sources"].size(), 2u);
+  const nlohmann::json& a = j["sources"][0];
+  EXPECT_EQ(a["name"], "A");
+  const LocateResult& r = report->sources[0].second;
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_EQ(a["origin"][k].get<double>(), r.scene_from_source.translation[k]);
+    EXPECT_EQ(a["rotation_xyz_rad"][k].get<double>(), r.rotation_xyz_rad[k]);
+    for (int l = 0; l < 3; ++l) EXPECT_EQ(a["origin_cov"][k][l].get<double>(), r.origin_covariance(k, l));
+  }
+  EXPECT_EQ(a["rms_residual_urad"].get<double>(), r.rms_residual_rad * 1e6);
+  EXPECT_EQ(a["n_spots"], 121);
+  EXPECT_TRUE(a["outliers"].is_array());
+  ASSERT_EQ(j["lengths"].size(), 1u);
+  EXPECT_EQ(j["lengths"][0]["from"], "A");
+  EXPECT_EQ(j["lengths"][0]["to"], "B");
+  EXPECT_EQ(j["lengths"][0]["cal"].get<double>(), cal.separations[0].length_mm);
+  EXPECT_EQ(j["lengths"][0]["photo"].get<double>(), report->scale.lengths[0].photo);
+  EXPECT_EQ(j["lengths"][0]["u_photo"].get<double>(), report->scale.lengths[0].u_photo);
+  EXPECT_EQ(j["scale_factor"].get<double>(), report->scale.scale_factor);
+  EXPECT_EQ(j["u_scale_factor"].get<double>(), report->scale.u_scale_factor);
+  EXPECT_EQ(j["units"]["scale_factor"], "mm per scene unit");
+}
+
+TEST(MeasureScale, TextSummaryShowsEverySection) {
+  const ModuleCalibration cal = SyntheticCalibration(2);
+  Result<MeasureReport> report = MeasureScale(cal, SyntheticSpots(cal));
+  ASSERT_TRUE(report.ok()) << report.status().ToString();
+  const std::string text = report->ToText();
+  EXPECT_THAT(text, HasSubstr("Source A: 121 spots, 121 used, 0 outliers\n"));
+  EXPECT_THAT(text, HasSubstr("  origin std dev  ("));
+  EXPECT_THAT(text, HasSubstr("urad"));
+  EXPECT_THAT(text, HasSubstr("  A-B: photo 27.501420 +- "));  // 55.002841 mm / 2
+  EXPECT_THAT(text, HasSubstr("Scale factor s = 2.000000000 +- "));
+  EXPECT_THAT(text, ::testing::Not(HasSubstr("Consistency")));  // one length only
+}
+
+TEST(MeasureScale, UnknownSourceNamesTheSpotAndTheSource) {
+  const ModuleCalibration cal = SyntheticCalibration(2);
+  std::vector<Spot> spots = SyntheticSpots(cal);
+  spots[3].source = "Z";
+  Result<MeasureReport> report = MeasureScale(cal, spots);
+  ASSERT_FALSE(report.ok());
+  EXPECT_EQ(report.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_EQ(report.status().message(),
+            "spots.csv:5: unknown source 'Z' (the calibration has A, B)");
+}
+
+TEST(MeasureScale, DuplicateSourceBeamNamesBothLines) {
+  const ModuleCalibration cal = SyntheticCalibration(2);
+  std::vector<Spot> spots = SyntheticSpots(cal);
+  spots[10].observation.beam_id = spots[4].observation.beam_id;  // both A, beam 5
+  Result<MeasureReport> report = MeasureScale(cal, spots);
+  ASSERT_FALSE(report.ok());
+  EXPECT_EQ(report.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_EQ(report.status().message(),
+            "spots.csv:12: duplicate spot of source 'A' beam 5 (also at spots.csv:6)");
+}
+
+TEST(MeasureScale, SameBeamIdOfTwoSourcesIsNotADuplicate) {
+  const ModuleCalibration cal = SyntheticCalibration(2);
+  // Every beam id appears once for A and once for B.
+  EXPECT_TRUE(MeasureScale(cal, SyntheticSpots(cal)).ok());
+}
+
+TEST(MeasureScale, BeamUnknownToThePattern) {
+  ModuleCalibration cal = SyntheticCalibration(2);
+  std::vector<Spot> spots = SyntheticSpots(cal);
+  spots[0].observation.beam_id = 122;
+  Result<MeasureReport> report = MeasureScale(cal, spots);
+  ASSERT_FALSE(report.ok());
+  EXPECT_EQ(report.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_EQ(report.status().message(),
+            "spots.csv:2: source 'A' has no beam 122 in the calibration (11 x 11 grid, 121 "
+            "beams calibrated)");
+}
+
+TEST(MeasureScale, TooFewSpotsIsNoSolutionNamingTheSource) {
+  const ModuleCalibration cal = SyntheticCalibration(2);
+  std::vector<Spot> spots;
+  int kept_b = 0;
+  for (const Spot& s : SyntheticSpots(cal)) {
+    if (s.source == "A" || (kept_b < 3 && (s.observation.beam_id % 13 == 0) && ++kept_b)) {
+      spots.push_back(s);
+    }
+  }
+  ASSERT_EQ(kept_b, 3);
+  Result<MeasureReport> report = MeasureScale(cal, spots);
+  ASSERT_FALSE(report.ok());
+  EXPECT_EQ(report.status().code(), StatusCode::kNoSolution);
+  EXPECT_THAT(report.status().message(), ::testing::StartsWith("source 'B': "));
+}
+
+TEST(MeasureScale, CollinearSpotsAreNoSolutionNamingTheSource) {
+  const ModuleCalibration cal = SyntheticCalibration(2);
+  std::vector<Spot> spots;
+  for (const Spot& s : SyntheticSpots(cal)) {
+    // Source A keeps only its central row: on the wall plane, a straight line.
+    const bool central_row = (s.observation.beam_id - 1) / 11 == 5;
+    if (s.source == "B" || central_row) spots.push_back(s);
+  }
+  Result<MeasureReport> report = MeasureScale(cal, spots);
+  ASSERT_FALSE(report.ok());
+  EXPECT_EQ(report.status().code(), StatusCode::kNoSolution);
+  EXPECT_THAT(report.status().message(), ::testing::StartsWith("source 'A': "));
+}
+
+TEST(MeasureScale, NoSeparationBetweenLocatedSourcesIsNoSolution) {
+  ModuleCalibration cal = SyntheticCalibration(2);
+  std::vector<Spot> spots;
+  for (const Spot& s : SyntheticSpots(cal)) {
+    if (s.source == "A") spots.push_back(s);
+  }
+  Result<MeasureReport> report = MeasureScale(cal, spots);
+  ASSERT_FALSE(report.ok());
+  EXPECT_EQ(report.status().code(), StatusCode::kNoSolution);
+  EXPECT_THAT(report.status().message(), HasSubstr("(located: A)"));
+}
+
+TEST(MeasureScale, NoSpotsAtAllIsNoSolution) {
+  Result<MeasureReport> report = MeasureScale(SyntheticCalibration(2), {});
+  ASSERT_FALSE(report.ok());
+  EXPECT_EQ(report.status().code(), StatusCode::kNoSolution);
+}
+
+TEST(MeasureScale, InvalidOptionsAreRejected) {
+  MeasureOptions options;
+  options.locate.outlier_threshold = -1.0;
+  const ModuleCalibration cal = SyntheticCalibration(2);
+  Result<MeasureReport> report = MeasureScale(cal, SyntheticSpots(cal), options);
+  ASSERT_FALSE(report.ok());
+  EXPECT_EQ(report.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_THAT(report.status().message(), ::testing::StartsWith("locate options: "));
+}
+
+}  // namespace
+}  // namespace opl

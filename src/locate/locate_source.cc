@@ -228,28 +228,24 @@ RefineOutcome RefineOnce(const Data& data, const std::vector<Eigen::Matrix2d>& W
     spots.push_back({data.points[i], data.bearings[i], std::sqrt(robust_weight[i]) * W[i]});
   }
   // TinySolver stops when |dx| < parameter_tolerance * (|x| + parameter_tolerance).
-  // To make that "a step below parameter_tolerance times the scene size", the
-  // origin offset is expressed from a reference point one scene size D away:
-  // x = (dtheta, dt + D e_x), so |x| ~ D throughout the solve.
+  // All six parameters are lengths (the rotation as the arc it sweeps at the
+  // spots, D dtheta, D the mean distance to the spots), and the origin offset
+  // is counted from a reference point D away, so |x| ~ D throughout: the test
+  // reads "the step moves the pose by less than parameter_tolerance * D".
   double D = 0.0;
   for (const auto& sp : spots) D += (sp.point_in_scene - *t).norm();
   D /= static_cast<double>(std::max<size_t>(1, spots.size()));
+  RefineOutcome out;
+  if (!(D > 0.0) || !std::isfinite(D)) return out;
   const Eigen::Vector3d reference_offset(D, 0.0, 0.0);
-  const SourcePoseCostFunction cost(std::move(spots), *R, *t - reference_offset);
+  const SourcePoseCostFunction cost(std::move(spots), *R, *t - reference_offset, D);
   Eigen::Matrix<double, 6, 1> x;
   x << 0.0, 0.0, 0.0, reference_offset;
-  // TinySolver's function tolerance is absolute: make it relative to the
-  // initial cost.
-  Eigen::VectorXd r0(cost.num_residuals());
-  const double* params[1] = {x.data()};
-  RefineOutcome out;
-  if (!cost.Evaluate(params, r0.data(), nullptr)) return out;
   using Adapter = ceres::TinySolverCostFunctionAdapter<Eigen::Dynamic, 6>;
   const Adapter function(cost);
   ceres::TinySolver<Adapter> solver;
   solver.options.max_num_iterations = options.max_iterations;
-  solver.options.function_tolerance = std::max(options.function_tolerance * 0.5 * r0.squaredNorm(),
-                                               std::numeric_limits<double>::min());
+  solver.options.function_tolerance = std::numeric_limits<double>::min();  // step test only
   solver.options.gradient_tolerance = options.gradient_tolerance;
   solver.options.parameter_tolerance = options.parameter_tolerance;
   solver.options.cost_threshold = 0.0;
@@ -332,8 +328,9 @@ Status LocateOptions::Validate() const {
     return bad("min_inlier_fraction", min_inlier_fraction, "must be in (0, 1]");
   }
   if (max_iterations < 1) return bad("max_iterations", max_iterations, "must be >= 1");
-  if (!(function_tolerance >= 0.0) || !(gradient_tolerance >= 0.0) || !(parameter_tolerance >= 0.0)) {
-    return Status::InvalidArgument("LocateOptions tolerances must be >= 0");
+  if (!(gradient_tolerance >= 0.0)) return bad("gradient_tolerance", gradient_tolerance, "must be >= 0");
+  if (!(parameter_tolerance > 0.0 && parameter_tolerance < 1e-2)) {
+    return bad("parameter_tolerance", parameter_tolerance, "must be in (0, 0.01)");
   }
   if (initial_scene_from_source &&
       (!initial_scene_from_source->translation.allFinite() ||

@@ -23,8 +23,8 @@ Eigen::Matrix3d LeftJacobianSO3(const Eigen::Vector3d& w) {
 }
 
 SourcePoseCostFunction::SourcePoseCostFunction(std::vector<Spot> spots, const Eigen::Matrix3d& R0,
-                                               const Eigen::Vector3d& t0)
-    : R0_(R0), t0_(t0) {
+                                               const Eigen::Vector3d& t0, double length_per_radian)
+    : R0_(R0), t0_(t0), length_per_radian_(length_per_radian) {
   spots_.reserve(spots.size());
   for (const Spot& s : spots) {
     // cos/sin of the beam's az, el from its unit direction d:
@@ -39,7 +39,7 @@ SourcePoseCostFunction::SourcePoseCostFunction(std::vector<Spot> spots, const Ei
 }
 
 Eigen::Matrix3d SourcePoseCostFunction::Rotation(const double* x) const {
-  return ExpSO3(Eigen::Vector3d(x[0], x[1], x[2])) * R0_;
+  return ExpSO3(Eigen::Vector3d(x[0], x[1], x[2]) / length_per_radian_) * R0_;
 }
 
 Eigen::Vector3d SourcePoseCostFunction::Origin(const double* x) const {
@@ -49,12 +49,12 @@ Eigen::Vector3d SourcePoseCostFunction::Origin(const double* x) const {
 bool SourcePoseCostFunction::Evaluate(double const* const* parameters, double* residuals,
                                       double** jacobians) const {
   const double* x = parameters[0];
-  const Eigen::Vector3d dtheta(x[0], x[1], x[2]);
+  const Eigen::Vector3d dtheta = Eigen::Vector3d(x[0], x[1], x[2]) / length_per_radian_;
   const Eigen::Matrix3d Rt = Rotation(x).transpose();
   const Eigen::Vector3d t = Origin(x);
   double* J = (jacobians != nullptr) ? jacobians[0] : nullptr;
-  Eigen::Matrix3d M;  // R0^T J_l(-dtheta)
-  if (J != nullptr) M = R0_.transpose() * LeftJacobianSO3(-dtheta);
+  Eigen::Matrix3d M;  // R0^T J_l(-dtheta) / D
+  if (J != nullptr) M = R0_.transpose() * LeftJacobianSO3(-dtheta) / length_per_radian_;
 
   const int n = static_cast<int>(spots_.size());
   for (int i = 0; i < n; ++i) {

@@ -21,10 +21,12 @@ struct AutoDiffResiduals {
   std::vector<SourcePoseCostFunction::Spot> spots;
   Eigen::Matrix3d R0;
   Eigen::Vector3d t0;
+  double D = 1.0;  // length per radian
   template <typename T>
   bool operator()(const T* x, T* residuals) const {
     T dR[9];
-    ceres::AngleAxisToRotationMatrix(x, ceres::ColumnMajorAdapter3x3(dR));
+    const T dtheta[3] = {x[0] / D, x[1] / D, x[2] / D};
+    ceres::AngleAxisToRotationMatrix(dtheta, ceres::ColumnMajorAdapter3x3(dR));
     const Eigen::Map<const Eigen::Matrix<T, 3, 3>> Exp(dR);
     const Eigen::Matrix<T, 3, 3> R = Exp * R0.cast<T>();
     const Eigen::Matrix<T, 3, 1> t = t0.cast<T>() + Eigen::Matrix<T, 3, 1>(x[3], x[4], x[5]);
@@ -69,11 +71,13 @@ TEST(SourcePoseCostFunction, AnalyticalVersusAutoDiffAwayFromZero) {
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   for (int trial = 0; trial < 100; ++trial) {
     const PoseProblem s = MakePoseProblem(rng, 9);
-    SourcePoseCostFunction analytic(s.spots, s.R0, s.t0);
+    // Half the trials with the rotation scaled to arc length at ~900 mm.
+    const double D = (trial % 2 == 0) ? 1.0 : 900.0;
+    SourcePoseCostFunction analytic(s.spots, s.R0, s.t0, D);
     ceres::AutoDiffCostFunction<AutoDiffResiduals, ceres::DYNAMIC, 6> autodiff(
-        new AutoDiffResiduals{s.spots, s.R0, s.t0}, 2 * static_cast<int>(s.spots.size()));
+        new AutoDiffResiduals{s.spots, s.R0, s.t0, D}, 2 * static_cast<int>(s.spots.size()));
     // Exact Jacobians are needed everywhere, not only at x = 0.
-    double x[6] = {0.2 * u(rng), 0.2 * u(rng), 0.2 * u(rng), u(rng), u(rng), u(rng)};
+    double x[6] = {0.2 * D * u(rng), 0.2 * D * u(rng), 0.2 * D * u(rng), u(rng), u(rng), u(rng)};
     if (trial == 0) std::fill(x, x + 6, 0.0);
     const double* params[1] = {x};
     const int m = analytic.num_residuals();
@@ -121,6 +125,10 @@ TEST(SourcePoseCostFunction, ZeroOnExactData) {
   double y[6] = {0.1, 0, 0, 1, 2, 3};
   EXPECT_NEAR((cost.Rotation(y) - ExpSO3(Eigen::Vector3d(0.1, 0, 0)) * R).norm(), 0, 1e-15);
   EXPECT_NEAR((cost.Origin(y) - Eigen::Vector3d(2, 4, 6)).norm(), 0, 1e-15);
+  // With D = 500 scene units per radian, x_rot = 50 is 0.1 rad.
+  SourcePoseCostFunction scaled(spots, R, t, 500.0);
+  double z[6] = {50.0, 0, 0, 0, 0, 0};
+  EXPECT_NEAR((scaled.Rotation(z) - ExpSO3(Eigen::Vector3d(0.1, 0, 0)) * R).norm(), 0, 1e-15);
 }
 
 TEST(LeftJacobianSO3, MatchesFiniteDifferenceOfExp) {

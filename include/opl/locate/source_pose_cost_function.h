@@ -3,13 +3,16 @@
 //
 // The pose scene_from_source = (R, t) is written as a local perturbation of a
 // reference pose (R0, t0):
-//   R = Exp(dtheta) R0,   t = t0 + dt,     x = (dtheta [rad], dt [scene units])
+//   R = Exp(dtheta) R0,  t = t0 + dt,   x = (D dtheta, dt)   [scene units]
 // so the 6-vector x lives in a plain Euclidean space (no manifold needed) and
-// the solve re-centres (R0, t0) between rounds. For spot i, with u = p_i - t,
+// the solve re-centres (R0, t0) between rounds. D (`length_per_radian`, e.g.
+// the distance to the spots) expresses the rotation as the arc it sweeps at
+// the spots, so that all six parameters are lengths and a step size means the
+// same thing for both. For spot i, with u = p_i - t,
 //   q_i = R^T u,
 //   r_i = W_i [ wrap(az(q_i) - az_i),  el(q_i) - el_i ]            (2 residuals)
 // and, exactly (not only at x = 0),
-//   dq/ddtheta = [q]x R0^T J_l(-dtheta),    dq/ddt = -R^T
+//   dq/ddtheta = [q]x R0^T J_l(-dtheta),    dq/ddt = -R^T,   dx_rot = D ddtheta
 // where J_l is the left Jacobian of SO(3). d(az, el)/dq is the closed form of
 // geometry/spherical.h. The angle differences are evaluated as the angles of
 // q rotated by the beam's (-az_i, -el_i), which is exact and well conditioned.
@@ -37,9 +40,9 @@ class SourcePoseCostFunction final : public ceres::CostFunction {
   };
 
   SourcePoseCostFunction(std::vector<Spot> spots, const Eigen::Matrix3d& R0,
-                         const Eigen::Vector3d& t0);
+                         const Eigen::Vector3d& t0, double length_per_radian = 1.0);
 
-  // Parameters: one block of 6, x = (dtheta, dt). Residuals: 2 per spot, in
+  // Parameters: one block of 6, x = (D dtheta, dt). Residuals: 2 per spot, in
   // spot order. Returns false where a spot lies on the source's Z axis.
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override;
@@ -59,6 +62,7 @@ class SourcePoseCostFunction final : public ceres::CostFunction {
   std::vector<Prepared> spots_;
   Eigen::Matrix3d R0_;
   Eigen::Vector3d t0_;
+  double length_per_radian_;
 };
 
 // Left Jacobian of SO(3): J_l(w) = I + (1 - cos a)/a^2 [w]x + (a - sin a)/a^3 [w]x^2.

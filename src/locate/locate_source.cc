@@ -34,7 +34,6 @@ struct Data {
   std::vector<int> beam_ids;
   std::vector<Eigen::Vector3d> points;    // scene
   std::vector<Eigen::Vector3d> bearings;  // unit, source frame
-  std::vector<double> az, el;             // beam angles
   std::vector<const Beam*> beams;
   std::vector<Eigen::Matrix3d> covs;      // empty when unweighted
 };
@@ -42,26 +41,33 @@ struct Data {
 Status CheckSpots(const BeamPattern& pattern, const std::vector<SpotObservation>& spots,
                   Data* data) {
   std::vector<char> seen(static_cast<size_t>(pattern.beams_per_side()) * pattern.beams_per_side() + 1, 0);
+  data->beam_ids.reserve(spots.size());
+  data->points.reserve(spots.size());
+  data->bearings.reserve(spots.size());
+  data->beams.reserve(spots.size());
   int with_cov = 0;
   for (size_t i = 0; i < spots.size(); ++i) {
     const SpotObservation& s = spots[i];
-    const std::string which = "spot " + std::to_string(i) + " (beam " + std::to_string(s.beam_id) + ")";
+    // The spot's name, built only when there is something to say.
+    auto which = [&]() {
+      return "spot " + std::to_string(i) + " (beam " + std::to_string(s.beam_id) + ")";
+    };
     const Beam* beam = pattern.Find(s.beam_id);
     if (beam == nullptr) {
-      return Status::InvalidArgument(which + ": beam id is not in the pattern (1.." +
+      return Status::InvalidArgument(which() + ": beam id is not in the pattern (1.." +
                                      std::to_string(pattern.beams_per_side() *
                                                     pattern.beams_per_side()) +
                                      ", calibrated beams only)");
     }
-    if (seen[s.beam_id]) return Status::InvalidArgument(which + ": duplicate beam id");
+    if (seen[s.beam_id]) return Status::InvalidArgument(which() + ": duplicate beam id");
     seen[s.beam_id] = 1;
     if (!s.point_in_scene.allFinite()) {
-      return Status::InvalidArgument(which + ": point is not finite");
+      return Status::InvalidArgument(which() + ": point is not finite");
     }
     if (s.cov_in_scene) {
       const Eigen::Matrix3d& C = *s.cov_in_scene;
       if (!C.allFinite() || (C - C.transpose()).cwiseAbs().maxCoeff() > 1e-9 * (1.0 + C.norm())) {
-        return Status::InvalidArgument(which + ": covariance is not finite and symmetric");
+        return Status::InvalidArgument(which() + ": covariance is not finite and symmetric");
       }
       // Positive semi-definite: every principal minor >= 0 (to round-off).
       const double tol = -1e-12 * C.cwiseAbs().maxCoeff() * C.cwiseAbs().maxCoeff();
@@ -71,15 +77,13 @@ Status CheckSpots(const BeamPattern& pattern, const std::vector<SpotObservation>
                        C(1, 1) * C(2, 2) - C(1, 2) * C(1, 2) >= tol &&
                        C.determinant() >= tol * C.cwiseAbs().maxCoeff();
       if (!psd) {
-        return Status::InvalidArgument(which + ": covariance is not positive semi-definite");
+        return Status::InvalidArgument(which() + ": covariance is not positive semi-definite");
       }
       ++with_cov;
     }
     data->beam_ids.push_back(s.beam_id);
     data->points.push_back(s.point_in_scene);
     data->bearings.push_back(pattern.DirectionInSource(s.beam_id));
-    data->az.push_back(beam->az_rad);
-    data->el.push_back(beam->el_rad);
     data->beams.push_back(beam);
   }
   if (with_cov != 0 && with_cov != static_cast<int>(spots.size())) {
@@ -93,11 +97,17 @@ Status CheckSpots(const BeamPattern& pattern, const std::vector<SpotObservation>
   return Status::Ok();
 }
 
-// (az, el) of the spot seen from the pose, minus the beam's, radians.
+// (az, el) of the spot seen from the pose, minus those of the beam direction
+// d (unit), radians; the same relative-angle form as SourcePoseCostFunction.
 Eigen::Vector2d AngularResidual(const Eigen::Matrix3d& R, const Eigen::Vector3d& t,
-                                const Eigen::Vector3d& p, double az, double el) {
+                                const Eigen::Vector3d& p, const Eigen::Vector3d& d) {
   const Eigen::Vector3d q = R.transpose() * (p - t);
-  return Eigen::Vector2d(WrapAngleRad(AzimuthRad(q) - az), ElevationRad(q) - el);
+  const double cos_el = std::hypot(d.x(), d.y());
+  const double cos_az = d.x() / cos_el, sin_az = d.y() / cos_el;
+  const double rho = std::hypot(q.x(), q.y());
+  return Eigen::Vector2d(
+      SmallAngleAtan2(q.y() * cos_az - q.x() * sin_az, q.x() * cos_az + q.y() * sin_az),
+      SmallAngleAtan2(q.z() * cos_el - rho * d.z(), rho * cos_el + q.z() * d.z()));
 }
 
 // Squared sine of the angle between bearing f (unit) and q; 1 when behind.
@@ -205,7 +215,7 @@ std::vector<double> NormalizedResiduals(const Data& data, const std::vector<Eige
       out[i] = std::numeric_limits<double>::infinity();
       continue;
     }
-    (*raw)[i] = AngularResidual(R, t, data.points[i], data.az[i], data.el[i]);
+    (*raw)[i] = AngularResidual(R, t, data.points[i], data.bearings[i]);
     out[i] = (W[i] * (*raw)[i]).norm();
   }
   return out;
@@ -291,7 +301,7 @@ RefineOutcome Refine(const Data& data, const std::vector<Eigen::Matrix2d>& W,
     double change = 0.0;
     for (int i = 0; i < n; ++i) {
       const Eigen::Vector2d r =
-          AngularResidual(*R, *t, data.points[i], data.az[i], data.el[i]);
+          AngularResidual(*R, *t, data.points[i], data.bearings[i]);
       const double w = RobustWeight(options.loss, a, (W[i] * r).squaredNorm());
       change = std::max(change, std::abs(w - weight[i]));
       weight[i] = w;
@@ -478,7 +488,7 @@ Result<LocateResult> LocateSource(const BeamPattern& pattern,
     dq.leftCols<3>() = R.transpose() * Skew(u);
     dq.rightCols<3>() = -R.transpose();
     const Eigen::Matrix<double, 2, 6> J = W[i] * AzElJacobian(q) * dq;
-    H += J.transpose() * J;
+    H.noalias() += J.transpose() * J;
     chi2 += (W[i] * raw[i]).squaredNorm();
     sum_sq_rad += raw[i].squaredNorm();
     ++used;

@@ -72,11 +72,13 @@ bool SourcePoseCostFunction::Evaluate(double const* const* parameters, double* r
     residuals[2 * i] = r(0);
     residuals[2 * i + 1] = r(1);
     if (J == nullptr) continue;
-    // d(az, el)/dq (geometry/spherical.h), whitened.
-    const double r2 = rho2 + q.z() * q.z();
-    const double k = q.z() / (rho * r2);
+    // d(az, el)/dq (geometry/spherical.h), whitened; two divisions shared:
+    // 1/rho = rho / rho^2.
+    const double inv_rho2 = 1.0 / rho2;
+    const double inv_r2 = 1.0 / (rho2 + q.z() * q.z());
+    const double k = q.z() * inv_r2 * rho * inv_rho2;
     Eigen::Matrix<double, 2, 3> G;
-    G << -q.y() / rho2, q.x() / rho2, 0.0, -q.x() * k, -q.y() * k, rho / r2;
+    G << -q.y() * inv_rho2, q.x() * inv_rho2, 0.0, -q.x() * k, -q.y() * k, rho * inv_r2;
     G = s.W * G;
     // Rows of G [q]x: g^T [q]x = (g x q)^T.
     Eigen::Matrix<double, 2, 3> Gq;

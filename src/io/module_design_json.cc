@@ -1,5 +1,7 @@
 #include "opl/io/module_design_json.h"
 
+#include "opl/core/format.h"
+
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
@@ -23,8 +25,6 @@ namespace {
 using json = nlohmann::json;
 
 constexpr int kVersion = 1;
-constexpr double kPi = 3.14159265358979323846;
-
 std::string Describe(const json& v) {
   std::string d = v.dump();
   if (d.size() > 40) d = d.substr(0, 37) + "...";

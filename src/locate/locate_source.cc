@@ -1,5 +1,7 @@
 #include "opl/locate/locate_source.h"
 
+#include "opl/core/format.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -22,12 +24,6 @@
 
 namespace opl {
 namespace {
-
-std::string Num(double v) {
-  char buf[64];
-  std::snprintf(buf, sizeof(buf), "%.6g", v);
-  return buf;
-}
 
 // The data of one locate, in flat arrays.
 struct Data {
@@ -315,7 +311,7 @@ RefineOutcome Refine(const Data& data, const std::vector<Eigen::Matrix2d>& W,
 
 Status LocateOptions::Validate() const {
   auto bad = [](const std::string& field, double value, const std::string& rule) {
-    return Status::InvalidArgument("LocateOptions." + field + " = " + Num(value) + ": " + rule);
+    return Status::InvalidArgument("LocateOptions." + field + " = " + FormatNumber(value, 6) + ": " + rule);
   };
   if (!(loss_scale > 0.0 && std::isfinite(loss_scale))) return bad("loss_scale", loss_scale, "must be > 0");
   if (!(loss_scale_unweighted_rad > 0.0 && std::isfinite(loss_scale_unweighted_rad))) {
@@ -361,10 +357,10 @@ std::vector<int> LocateResult::OutlierBeamIds() const {
 std::string LocateResult::BriefReport() const {
   std::ostringstream os;
   const Eigen::Vector3d& o = scene_from_source.translation;
-  os << "origin (" << Num(o.x()) << ", " << Num(o.y()) << ", " << Num(o.z()) << ")"
-     << " +- (" << Num(std::sqrt(origin_covariance(0, 0))) << ", "
-     << Num(std::sqrt(origin_covariance(1, 1))) << ", " << Num(std::sqrt(origin_covariance(2, 2)))
-     << "), rms " << Num(rms_residual_rad * 1e6) << " urad, " << num_inliers << "/" << num_spots
+  os << "origin (" << FormatNumber(o.x(), 6) << ", " << FormatNumber(o.y(), 6) << ", " << FormatNumber(o.z(), 6) << ")"
+     << " +- (" << FormatNumber(std::sqrt(origin_covariance(0, 0)), 6) << ", "
+     << FormatNumber(std::sqrt(origin_covariance(1, 1)), 6) << ", " << FormatNumber(std::sqrt(origin_covariance(2, 2)), 6)
+     << "), rms " << FormatNumber(rms_residual_rad * 1e6, 6) << " urad, " << num_inliers << "/" << num_spots
      << " spots used, " << (num_spots - num_inliers) << " outliers";
   return os.str();
 }
@@ -422,7 +418,7 @@ Result<LocateResult> LocateSource(const BeamPattern& pattern,
       return Status::NoSolution("no pose explains the spots: RANSAC found at most " +
                                 std::to_string(ransac.num_inliers) + " consistent spots of " +
                                 std::to_string(n) + " (threshold " +
-                                Num(options.ransac_inlier_threshold_rad) + " rad)");
+                                FormatNumber(options.ransac_inlier_threshold_rad, 6) + " rad)");
     }
     init = ransac.pose;
     result.ransac_iterations = ransac.iterations;
@@ -446,7 +442,7 @@ Result<LocateResult> LocateSource(const BeamPattern& pattern,
     if (used < 4 || used < options.min_inlier_fraction * n) {
       return Status::NoSolution("no pose explains enough spots: " + std::to_string(used) +
                                 " of " + std::to_string(n) + " are consistent (at least " +
-                                Num(100.0 * options.min_inlier_fraction) + "% needed)");
+                                FormatNumber(100.0 * options.min_inlier_fraction, 6) + "% needed)");
     }
     const RefineOutcome refined = Refine(data, W, use, options, &R, &t);
     if (!refined.ok) return Status::NoSolution("the pose refinement failed");

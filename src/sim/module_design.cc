@@ -1,19 +1,13 @@
 #include "opl/sim/module_design.h"
 
+#include "opl/core/format.h"
+
 #include <cmath>
 #include <cstdio>
 #include <set>
 
 namespace opl {
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
-
-std::string Short(double v) {
-  char buf[64];
-  std::snprintf(buf, sizeof(buf), "%.10g", v);
-  return buf;
-}
 
 bool IsProperRotation(const Eigen::Matrix3d& R) {
   return R.allFinite() &&
@@ -46,7 +40,7 @@ Status ModuleDesign::Validate() const {
     }
     if (!(std::isfinite(s.wavelength_nm) && s.wavelength_nm > 0.0)) {
       return Status::InvalidArgument(who + "wavelength_nm must be finite and > 0, got " +
-                                     Short(s.wavelength_nm));
+                                     FormatNumber(s.wavelength_nm));
     }
     if (!s.scene_from_source.translation.allFinite() ||
         !s.scene_from_source.rotation.coeffs().allFinite() ||
@@ -61,8 +55,8 @@ Status ModuleDesign::Validate() const {
   }
   if (!spot_noise_mm.allFinite() || (spot_noise_mm.array() < 0.0).any()) {
     return Status::InvalidArgument("spot_noise_mm must be finite and >= 0, got [" +
-                                   Short(spot_noise_mm.x()) + ", " + Short(spot_noise_mm.y()) +
-                                   ", " + Short(spot_noise_mm.z()) + "]");
+                                   FormatNumber(spot_noise_mm.x()) + ", " + FormatNumber(spot_noise_mm.y()) +
+                                   ", " + FormatNumber(spot_noise_mm.z()) + "]");
   }
   if (!IsProperRotation(noise_frame_rotation)) {
     return Status::InvalidArgument("noise_frame_rotation is not a proper rotation");

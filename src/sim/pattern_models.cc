@@ -1,5 +1,7 @@
 #include "opl/sim/pattern_models.h"
 
+#include "opl/core/format.h"
+
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -15,20 +17,6 @@
 
 namespace opl {
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
-
-std::string Num(double v) {
-  char buf[64];
-  std::snprintf(buf, sizeof(buf), "%.17g", v);
-  return buf;
-}
-
-std::string Short(double v) {
-  char buf[64];
-  std::snprintf(buf, sizeof(buf), "%.10g", v);
-  return buf;
-}
 
 // Lattice coordinates of beam `id`: (i, j) = (c - m, m - r).
 void LatticeOf(int id, int n, int* i, int* j) {
@@ -124,12 +112,12 @@ Status CheckPatternParameters(PatternModel model, int beams_per_side, double ful
         std::string("full angle must be finite, > 0 and < ") +
         (model == PatternModel::kGrating ? "90 deg for a grating (corner orders must propagate)"
                                          : "180 deg") +
-        ", got " + Short(full_angle_rad * 180.0 / kPi) + " deg");
+        ", got " + FormatNumber(full_angle_rad * 180.0 / kPi) + " deg");
   }
   if (model == PatternModel::kGrating) {
     if (!(std::isfinite(wavelength_nm) && wavelength_nm > 0.0)) {
       return Status::InvalidArgument("wavelength_nm must be finite and > 0, got " +
-                                     Short(wavelength_nm));
+                                     FormatNumber(wavelength_nm));
     }
   }
   return Status::Ok();
@@ -353,7 +341,7 @@ Status WritePatternCsv(const BeamPattern& pattern, const std::string& path) {
   out << "# beams_per_side: " << pattern.beams_per_side() << "\n";
   out << "id,az_rad,el_rad\n";
   for (const Beam& b : pattern.beams()) {
-    out << b.id << "," << Num(b.az_rad) << "," << Num(b.el_rad) << "\n";
+    out << b.id << "," << FormatNumber(b.az_rad, 17) << "," << FormatNumber(b.el_rad, 17) << "\n";
   }
   out.flush();
   if (!out) return Status::IoError(path + ": write error");

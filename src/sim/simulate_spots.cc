@@ -1,5 +1,7 @@
 #include "opl/sim/simulate_spots.h"
 
+#include "opl/core/format.h"
+
 #include <cmath>
 #include <cstdio>
 #include <numeric>
@@ -11,14 +13,6 @@
 
 namespace opl {
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
-
-std::string Short(double v) {
-  char buf[64];
-  std::snprintf(buf, sizeof(buf), "%.10g", v);
-  return buf;
-}
 
 struct Candidate {
   const SourceDesign* source = nullptr;
@@ -41,15 +35,15 @@ Eigen::Vector3d AnyPerpendicular(const Eigen::Vector3d& d) {
 Status SpotSimulationOptions::Validate() const {
   if (!(missing_fraction >= 0.0 && missing_fraction <= 1.0)) {
     return Status::InvalidArgument("missing_fraction must be in [0, 1], got " +
-                                   Short(missing_fraction));
+                                   FormatNumber(missing_fraction));
   }
   if (!(outlier_fraction >= 0.0 && outlier_fraction <= 1.0)) {
     return Status::InvalidArgument("outlier_fraction must be in [0, 1], got " +
-                                   Short(outlier_fraction));
+                                   FormatNumber(outlier_fraction));
   }
   if (!(std::isfinite(outlier_distance_mm) && outlier_distance_mm > 0.0)) {
     return Status::InvalidArgument("outlier_distance_mm must be finite and > 0, got " +
-                                   Short(outlier_distance_mm));
+                                   FormatNumber(outlier_distance_mm));
   }
   return Status::Ok();
 }

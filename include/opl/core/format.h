@@ -1,0 +1,15 @@
+// Number formatting for messages and reports, and the constants the modules
+// share.
+#pragma once
+
+#include <string>
+
+namespace opl {
+
+inline constexpr double kPi = 3.14159265358979323846;
+
+// printf("%.<significant_digits>g"): 17 digits round-trip a double exactly;
+// 10 read well in messages.
+std::string FormatNumber(double value, int significant_digits = 10);
+
+}  // namespace opl

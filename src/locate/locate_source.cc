@@ -15,7 +15,6 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
-#include <Eigen/SVD>
 
 #include "opl/geometry/rotation.h"
 #include "opl/geometry/spherical.h"

@@ -9,26 +9,15 @@
 #include <unistd.h>
 
 #include "opl/geometry/rotation.h"
+#include "support/prototype_design.h"
 
 namespace opl {
 namespace {
 
 constexpr double kDeg = 3.14159265358979323846 / 180.0;
 
-SourceDesign Source(const std::string& name, const Eigen::Vector3d& origin_mm,
-                    const Eigen::Vector3d& xyz_rad = Eigen::Vector3d::Zero()) {
-  SourceDesign s;
-  s.name = name;
-  s.scene_from_source = Rigid3d(RotationFromXyzAnglesRad(xyz_rad), origin_mm);
-  return s;
-}
-
-ModuleDesign Prototype() {
-  ModuleDesign d;
-  d.sources = {Source("A", {0, 27.5, 0}), Source("B", {0, -27.5, 0})};
-  d.spot_noise_mm = Eigen::Vector3d(0.110, 0.073, 0.073);
-  return d;
-}
+using test::Prototype;
+using test::Source;
 
 TEST(ModuleDesign, DefaultsAreThePrototype) {
   const SourceDesign s;

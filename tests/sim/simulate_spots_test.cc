@@ -12,6 +12,7 @@
 #include <unistd.h>
 
 #include "opl/geometry/rotation.h"
+#include "support/prototype_design.h"
 #include "opl/geometry/spherical.h"
 #include "opl/sim/random.h"
 
@@ -20,21 +21,8 @@ namespace {
 
 using Vec3 = Eigen::Vector3d;
 
-SourceDesign Source(const std::string& name, const Vec3& origin_mm,
-                    const Vec3& xyz_rad = Vec3::Zero()) {
-  SourceDesign s;
-  s.name = name;
-  s.scene_from_source = Rigid3d(RotationFromXyzAnglesRad(xyz_rad), origin_mm);
-  return s;
-}
-
-ModuleDesign Prototype() {
-  ModuleDesign d;
-  d.sources = {Source("A", {0, 27.5, 0}), Source("B", {0, -27.5, 0})};
-  d.surface = PlaneSurface{Vec3(1000, 0, 0), Vec3(-1, 0, 0)};
-  d.spot_noise_mm = Vec3(0.110, 0.073, 0.073);
-  return d;
-}
+using test::Prototype;
+using test::Source;
 
 // Angle between the ray of the spot's beam and the direction from the source
 // origin to `point`, computed from the pattern independently of the simulator.

@@ -1,13 +1,18 @@
 // opl_simulate: simulated data of a module design (docs/cli.md).
 //   opl_simulate spots --design D.json --out spots.csv [--seed S] [--missing F]
 //                      [--outliers F] [--outlier-distance MM] [--noise-scale F]
+//   opl_simulate slices --design D.json --out slices.csv [--depths LIST]
+//                      [--tilt-deg A] [--curvature C] [the options of spots]
 //   opl_simulate calibration --design D.json --out cal.json
-// The work is done by opl::SimulateSpots and opl::ExactCalibration
-// (include/opl/sim/); this file parses options, reads the design, writes the
-// output atomically and maps errors to exit codes.
+// The work is done by opl::SimulateSpots, opl::MakeCalibrationScreens,
+// opl::SimulateSlices and opl::ExactCalibration (include/opl/sim/); this file
+// parses options, reads the design, writes the output atomically and maps
+// errors to exit codes.
 #include <cmath>
 #include <cstdio>
+#include <optional>
 #include <string>
+#include <vector>
 
 #include "cli_common.h"
 #include "opl/io/atomic_file.h"
@@ -15,6 +20,7 @@
 #include "opl/io/module_design_json.h"
 #include "opl/io/spots_csv.h"
 #include "opl/sim/module_design.h"
+#include "opl/sim/simulate_slices.h"
 #include "opl/sim/simulate_spots.h"
 
 namespace {
@@ -26,36 +32,57 @@ struct Args {
   std::string out_path;
   opl::SpotSimulationOptions spots;
   double noise_scale = 1.0;
+  // slices only
+  bool depths_given = false;  // false: the design's own planes are the slices
+  std::string depths;
+  double tilt_deg = 0.0;
+  double curvature_per_mm = 0.0;
 };
 
-int SimulateSpotsCommand(const Args& args) {
+// What `spots` and `slices` share before simulating: checks --noise-scale,
+// reads the design, scales its noise and validates the spot options. Returns
+// the exit code when the command must stop.
+std::optional<int> PrepareSpotSimulation(const Args& args, opl::ModuleDesign* design,
+                                         opl::SpotSimulationOptions* options) {
   using namespace opl;
   if (!(std::isfinite(args.noise_scale) && args.noise_scale >= 0.0)) {
     return cli::Fail(kTool, "--noise-scale must be finite and >= 0, got " +
                                 std::to_string(args.noise_scale),
                      cli::kExitBadInput);
   }
-  Result<ModuleDesign> design = ReadModuleDesignJson(args.design_path);
-  if (!design.ok()) return cli::FailInput(kTool, design.status());
+  Result<ModuleDesign> read = ReadModuleDesignJson(args.design_path);
+  if (!read.ok()) return cli::FailInput(kTool, read.status());
+  *design = std::move(*read);
   design->spot_noise_mm *= args.noise_scale;
 
   // A spots CSV carries per-coordinate standard deviations, which must be > 0:
   // attach them only when the noise has a positive variance on every axis.
-  SpotSimulationOptions options = args.spots;
+  *options = args.spots;
   const Eigen::Vector3d variance = design->SpotCovarianceMm2().diagonal();
-  options.attach_covariance = (variance.array() > 0.0).all();
-  if (Status st = options.Validate(); !st.ok()) {
+  options->attach_covariance = (variance.array() > 0.0).all();
+  if (Status st = options->Validate(); !st.ok()) {
     return cli::Fail(kTool, "invalid option: " + st.message(), cli::kExitBadInput);
   }
+  return std::nullopt;
+}
 
-  Result<std::vector<SimulatedSpot>> simulated = SimulateSpots(*design, options);
-  if (!simulated.ok()) return cli::FailInput(kTool, simulated.status());
-
-  // Standard columns, then the simulation's ground truth (ignored by readers).
-  SpotsCsvExtraColumn slice{"slice", {}}, outlier{"outlier", {}};
+// Writes simulated spots as a spots CSV (atomically): the standard columns,
+// then the simulation's ground truth (ignored by readers).
+// With `screens` (a calibration session of that many screens), the slice
+// column numbers the grid photographs, as opl_calibrate reads them (one
+// source per slice): source i (design order) on screen k is slice i * screens
+// + k, and a `screen` column gives k.
+int WriteSimulatedSpots(const std::vector<opl::SimulatedSpot>& simulated,
+                        const opl::ModuleDesign& design, const std::string& path,
+                        int screens = 0) {
+  using namespace opl;
+  SpotsCsvExtraColumn slice{"slice", {}}, screen{"screen", {}}, outlier{"outlier", {}};
   SpotsCsvExtraColumn true_xyz[3] = {{"true_x", {}}, {"true_y", {}}, {"true_z", {}}};
-  for (const SimulatedSpot& s : *simulated) {
-    slice.values.push_back(std::to_string(s.slice));
+  for (const SimulatedSpot& s : simulated) {
+    int source_index = 0;
+    while (design.sources[source_index].name != s.spot.source) ++source_index;
+    slice.values.push_back(std::to_string(screens > 0 ? source_index * screens + s.slice : s.slice));
+    screen.values.push_back(std::to_string(s.slice));
     outlier.values.push_back(s.outlier ? "1" : "0");
     for (int k = 0; k < 3; ++k) {
       char buffer[32];
@@ -63,13 +90,67 @@ int SimulateSpotsCommand(const Args& args) {
       true_xyz[k].values.push_back(buffer);
     }
   }
-  Result<std::string> csv = FormatSpotsCsv(
-      SpotsOf(*simulated), {slice, outlier, true_xyz[0], true_xyz[1], true_xyz[2]});
-  if (!csv.ok()) return cli::FailInput(kTool, csv.status());
-  if (Status st = WriteFileAtomically(args.out_path, *csv); !st.ok()) {
-    return cli::FailWrite(kTool, st);
+  std::vector<SpotsCsvExtraColumn> extra = {slice};
+  if (screens > 0) extra.push_back(screen);
+  for (const SpotsCsvExtraColumn& c : {outlier, true_xyz[0], true_xyz[1], true_xyz[2]}) {
+    extra.push_back(c);
   }
+  Result<std::string> csv = FormatSpotsCsv(SpotsOf(simulated), extra);
+  if (!csv.ok()) return cli::FailInput(kTool, csv.status());
+  if (Status st = WriteFileAtomically(path, *csv); !st.ok()) return cli::FailWrite(kTool, st);
   return cli::kExitOk;
+}
+
+int SimulateSpotsCommand(const Args& args) {
+  using namespace opl;
+  ModuleDesign design;
+  SpotSimulationOptions options;
+  if (std::optional<int> code = PrepareSpotSimulation(args, &design, &options)) return *code;
+  Result<std::vector<SimulatedSpot>> simulated = SimulateSpots(design, options);
+  if (!simulated.ok()) return cli::FailInput(kTool, simulated.status());
+  return WriteSimulatedSpots(*simulated, design, args.out_path);
+}
+
+int SimulateSlicesCommand(const Args& args) {
+  using namespace opl;
+  // The syntax of --depths is part of the command line: a usage error.
+  ScreenSlicesOptions screen_options;
+  if (args.depths_given) {
+    Result<std::vector<double>> depths = ParseDepthList(args.depths);
+    if (!depths.ok()) {
+      return cli::Fail(kTool, "--depths: " + depths.status().message() + " (see --help)",
+                       cli::kExitUsage);
+    }
+    screen_options.depths_mm = std::move(*depths);
+  }
+  screen_options.tilt_deg = args.tilt_deg;
+  screen_options.curvature_per_mm = args.curvature_per_mm;
+
+  ModuleDesign design;
+  SpotSimulationOptions options;
+  if (std::optional<int> code = PrepareSpotSimulation(args, &design, &options)) return *code;
+
+  std::vector<Surface> screens;
+  if (!args.depths_given) {
+    if (design.surface.type() != SurfaceType::kPlanes) {
+      return cli::Fail(kTool,
+                       "--depths is required: the design's surface is a " +
+                           std::string(design.surface.TypeName()) +
+                           ", not a list of planes (see --help)",
+                       cli::kExitUsage);
+    }
+    screens = SlicesOf(design.surface);
+  } else {
+    if (Status st = screen_options.Validate(); !st.ok()) {
+      return cli::Fail(kTool, "invalid option: " + st.message(), cli::kExitBadInput);
+    }
+    Result<std::vector<Surface>> made = MakeCalibrationScreens(design, screen_options);
+    if (!made.ok()) return cli::FailInput(kTool, made.status());
+    screens = std::move(*made);
+  }
+  Result<std::vector<SimulatedSpot>> simulated = SimulateSlices(design, screens, options);
+  if (!simulated.ok()) return cli::FailInput(kTool, simulated.status());
+  return WriteSimulatedSpots(*simulated, design, args.out_path, static_cast<int>(screens.size()));
 }
 
 int CalibrationCommand(const Args& args) {
@@ -95,14 +176,41 @@ void AddDesignAndOut(CLI::App* command, Args* args, const std::string& out_help)
   command->add_option("--out", args->out_path, out_help)->required()->type_name("FILE");
 }
 
+// The options of the random spot simulation (SpotSimulationOptions and the
+// noise scale), shared by `spots` and `slices`.
+void AddSpotOptions(CLI::App* command, Args* args) {
+  command
+      ->add_option("--seed", args->spots.seed,
+                   "Seed of every random choice; the same seed gives the same spots")
+      ->capture_default_str();
+  command
+      ->add_option("--missing", args->spots.missing_fraction,
+                   "Fraction of the spots dropped, in [0, 1]")
+      ->capture_default_str();
+  command
+      ->add_option("--outliers", args->spots.outlier_fraction,
+                   "Fraction of the kept spots made outliers, in [0, 1]")
+      ->capture_default_str();
+  command
+      ->add_option("--outlier-distance", args->spots.outlier_distance_mm,
+                   "Displacement of an outlier across its beam, mm, > 0")
+      ->capture_default_str();
+  command
+      ->add_option("--noise-scale", args->noise_scale,
+                   "Multiplies the design's spot noise (spot_noise_mm); 0 gives noise-free\n"
+                   "spots (written without sx,sy,sz), >= 0")
+      ->capture_default_str();
+}
+
 int Run(int argc, char** argv) {
   Args args;
   CLI::App app(
       "Simulates the data of an optically projected length scale module from its design\n"
       "(sources, patterns, poses, surface, spot noise): the spots its grids throw on the\n"
-      "design's surface, or the exact calibration of the design. A simulated calibration\n"
-      "and simulated spots are what opl_measure reads, so the two tools together test a\n"
-      "design end to end (with zero noise, opl_measure finds s = 1).\n",
+      "design's surface, the spots of a calibration session (a screen at several depths),\n"
+      "or the exact calibration of the design. A simulated calibration and simulated\n"
+      "spots are what opl_measure reads, so the two tools together test a design end to\n"
+      "end (with zero noise, opl_measure finds s = 1).\n",
       kTool);
   app.require_subcommand(1);
   const std::string examples =
@@ -110,7 +218,9 @@ int Run(int argc, char** argv) {
       "  opl_simulate spots --design examples/prototype_design.json --out spots.csv --seed 7 \\\n"
       "      --missing 0.1 --outliers 0.02\n"
       "  opl_simulate spots --design examples/prototype_design.json --out exact.csv --noise-scale 0\n"
-      "  opl_measure --calibration cal.json --spots spots.csv\n";
+      "  opl_measure --calibration cal.json --spots spots.csv\n"
+      "  opl_simulate slices --design examples/prototype_design.json --depths 750:65:1335 \\\n"
+      "      --out slices.csv --tilt-deg 3 --curvature 2e-5 --missing 0.05 --outliers 0.01\n";
   app.footer(opl::cli::HelpFooter(examples));
 
   CLI::App* spots = app.add_subcommand(
@@ -119,23 +229,53 @@ int Run(int argc, char** argv) {
       "(mm, the design's scene frame), sx,sy,sz (the noise standard deviations, when\n"
       "> 0 on every axis), then ground truth columns slice,outlier,true_x,true_y,true_z.");
   AddDesignAndOut(spots, &args, "Spots CSV to write (atomically)");
-  spots->add_option("--seed", args.spots.seed,
-                    "Seed of every random choice; the same seed gives the same spots")
-      ->capture_default_str();
-  spots->add_option("--missing", args.spots.missing_fraction,
-                    "Fraction of the spots dropped, in [0, 1]")
-      ->capture_default_str();
-  spots->add_option("--outliers", args.spots.outlier_fraction,
-                    "Fraction of the kept spots made outliers, in [0, 1]")
-      ->capture_default_str();
-  spots->add_option("--outlier-distance", args.spots.outlier_distance_mm,
-                    "Displacement of an outlier across its beam, mm, > 0")
-      ->capture_default_str();
-  spots->add_option("--noise-scale", args.noise_scale,
-                    "Multiplies the design's spot noise (spot_noise_mm); 0 gives noise-free\n"
-                    "spots (written without sx,sy,sz), >= 0")
-      ->capture_default_str();
+  AddSpotOptions(spots, &args);
   spots->footer(opl::cli::HelpFooter(examples));
+
+  CLI::App* slices = app.add_subcommand(
+      "slices",
+      "Simulate a calibration session (docs/simulation.md, 'Simulating a calibration\n"
+      "session'): the module stays fixed and a screen is placed at several depths; every\n"
+      "grid throws its spots on every screen, one grid photographed at a time. Written as\n"
+      "the spots CSV of `spots`, ready for opl_calibrate: a slice is one grid on one\n"
+      "screen, so source i (design order) on screen k is slice i * K + k (K screens),\n"
+      "and a `screen` column after `slice` gives k. Missing spots, outliers and noise are\n"
+      "drawn for each screen on its own (seed derived from --seed and k), so --missing\n"
+      "0.1 drops 10% of the spots of every screen.\n"
+      "\n"
+      "Depths (--depths) are in mm, in the design's scene frame, measured from the mean\n"
+      "projection origin of the sources along the module's mean viewing direction (the\n"
+      "mean of the sources' central beams). For examples/prototype_design.json (sources\n"
+      "at y = +-27.5 mm looking along +X) a depth is the scene x of the screen.\n"
+      "  --depths 750:65:1335     first:step:last, last included: 750, 815, ..., 1335\n"
+      "  --depths 750,815,1000    a comma-separated list\n"
+      "Without --depths the design's surface must be a list of planes (\"planes\"):\n"
+      "each plane is a slice. --tilt-deg turns screen k about the module's up axis by\n"
+      "+A (even k) or -A (odd k) degrees, so neighbouring screens are not parallel;\n"
+      "--curvature makes every screen a paraboloid z' = C/2 r'^2 (C > 0: the edges bend\n"
+      "towards the module). Either way the point at each depth on the viewing axis stays\n"
+      "on its screen.");
+  AddDesignAndOut(slices, &args, "Spots CSV to write (atomically), with the slice column");
+  CLI::Option* depths =
+      slices
+          ->add_option("--depths", args.depths,
+                       "Screen depths, mm: first:step:last or a comma-separated list; required\n"
+                       "unless the design's surface is a list of planes")
+          ->type_name("LIST");
+  slices
+      ->add_option("--tilt-deg", args.tilt_deg,
+                   "Tilt of the screens about the module's up axis, degrees, |A| < 90,\n"
+                   "alternating sign (+A, -A, +A, ...)")
+      ->needs(depths)
+      ->capture_default_str();
+  slices
+      ->add_option("--curvature", args.curvature_per_mm,
+                   "Curvature of every screen, 1/mm (0: flat); > 0 bends the edges towards\n"
+                   "the module")
+      ->needs(depths)
+      ->capture_default_str();
+  AddSpotOptions(slices, &args);
+  slices->footer(opl::cli::HelpFooter(examples));
 
   CLI::App* calibration = app.add_subcommand(
       "calibration",
@@ -147,6 +287,10 @@ int Run(int argc, char** argv) {
 
   if (std::optional<int> code = opl::cli::ParseCommandLine(app, argc, argv)) return *code;
   if (spots->parsed()) return SimulateSpotsCommand(args);
+  if (slices->parsed()) {
+    args.depths_given = depths->count() > 0;
+    return SimulateSlicesCommand(args);
+  }
   return CalibrationCommand(args);
 }
 

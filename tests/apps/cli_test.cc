@@ -11,6 +11,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "cli_test_util.h"
 #include "io/temp_dir.h"
 #include "opl/io/module_calibration_json.h"
 #include "opl/io/points_csv.h"
@@ -20,32 +21,15 @@
 namespace opl {
 namespace {
 
+using cli_test::Measure;
+using cli_test::RunResult;
+using cli_test::Simulate;
 using testing_support::ReadAll;
 using testing_support::SyntheticCalibration;
 using testing_support::SyntheticSpots;
 using testing_support::TempDir;
 using ::testing::HasSubstr;
 using ::testing::StartsWith;
-
-struct RunResult {
-  int exit_code = -1;
-  std::string out, err;
-};
-
-// Runs `exe args` (args already shell-quoted where needed).
-RunResult Run(const std::string& exe, const std::string& args) {
-  TempDir capture;
-  const std::string out = capture.File("stdout"), err = capture.File("stderr");
-  const std::string command = "'" + exe + "' " + args + " >'" + out + "' 2>'" + err + "'";
-  const int status = std::system(command.c_str());
-  RunResult r;
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  r.out = ReadAll(out);
-  r.err = ReadAll(err);
-  return r;
-}
-RunResult Measure(const std::string& args) { return Run(OPL_MEASURE_EXE, args); }
-RunResult Simulate(const std::string& args) { return Run(OPL_SIMULATE_EXE, args); }
 
 std::string SpotsText(const std::vector<Spot>& spots) {
   Result<std::string> text = FormatSpotsCsv(spots);

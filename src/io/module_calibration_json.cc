@@ -116,6 +116,79 @@ class Fields {
   if (!lhs##_result.ok()) return lhs##_result.status(); \
   auto lhs = std::move(*lhs##_result)
 
+// A 3x3 matrix written as [[..,..,..], [..], [..]].
+Result<Eigen::Matrix3d> Matrix3(const Fields& f, const json& value, const std::string& path) {
+  if (!value.is_array() || value.size() != 3) {
+    return f.Error(path, "expected a 3x3 matrix [[a, b, c], [d, e, f], [g, h, i]]");
+  }
+  Eigen::Matrix3d M;
+  for (size_t r = 0; r < 3; ++r) {
+    OPL_ASSIGN_OR_RETURN(row, f.Vector<3>(value[r], Fields::Index(path, r)));
+    M.row(static_cast<int>(r)) = row.transpose();
+  }
+  return M;
+}
+
+// The optional "quality" object of a source (written by opl_calibrate).
+Result<SourceCalibrationQuality> ParseQuality(const Fields& f, const json& q,
+                                              const std::string& path) {
+  SourceCalibrationQuality quality;
+  const std::pair<const char*, int*> ints[] = {{"slices", &quality.slices},
+                                               {"samples_used", &quality.samples_used},
+                                               {"samples_flagged", &quality.samples_flagged},
+                                               {"beams_dropped", &quality.beams_dropped}};
+  for (const auto& [key, target] : ints) {
+    OPL_ASSIGN_OR_RETURN(member, f.Member(q, path, key));
+    OPL_ASSIGN_OR_RETURN(value, f.Int(*member, path + "." + key));
+    if (value < 0) return f.Error(path + "." + key, "must be >= 0, got " + member->dump());
+    *target = value;
+  }
+  const std::pair<const char*, double*> numbers[] = {
+      {"rms_residual_urad", &quality.rms_residual_urad},
+      {"variance_factor", &quality.variance_factor},
+      {"mean_point_to_ray_mm", &quality.mean_point_to_ray_mm},
+      {"max_point_to_ray_mm", &quality.max_point_to_ray_mm}};
+  for (const auto& [key, target] : numbers) {
+    OPL_ASSIGN_OR_RETURN(member, f.Member(q, path, key));
+    OPL_ASSIGN_OR_RETURN(value, f.Number(*member, path + "." + key));
+    if (value < 0.0) return f.Error(path + "." + key, "must be >= 0, got " + member->dump());
+    *target = value;
+  }
+  OPL_ASSIGN_OR_RETURN(origin_cov_json, f.Member(q, path, "origin_cov_mm2"));
+  OPL_ASSIGN_OR_RETURN(origin_cov, Matrix3(f, *origin_cov_json, path + ".origin_cov_mm2"));
+  OPL_ASSIGN_OR_RETURN(rot_cov_json, f.Member(q, path, "rotation_xyz_cov_rad2"));
+  OPL_ASSIGN_OR_RETURN(rot_cov, Matrix3(f, *rot_cov_json, path + ".rotation_xyz_cov_rad2"));
+  quality.origin_cov_mm2 = origin_cov;
+  quality.rotation_xyz_cov_rad2 = rot_cov;
+  return quality;
+}
+
+// The optional top-level "scaling" object (written by opl_calibrate).
+Result<CalibrationScaling> ParseScaling(const Fields& f, const json& sj) {
+  const std::string path = "scaling";
+  CalibrationScaling scaling;
+  for (const auto& [key, target] : {std::pair<const char*, std::string*>{"from_target", &scaling.from_target},
+                                    {"to_target", &scaling.to_target}}) {
+    OPL_ASSIGN_OR_RETURN(member, f.Member(sj, path, key));
+    OPL_ASSIGN_OR_RETURN(value, f.String(*member, path + "." + key));
+    *target = value;
+  }
+  const std::pair<const char*, double*> numbers[] = {
+      {"artifact_length_mm", &scaling.artifact_length_mm},
+      {"u_artifact_length_mm", &scaling.u_artifact_length_mm},
+      {"measured_length", &scaling.measured_length},
+      {"u_measured_length", &scaling.u_measured_length},
+      {"scale", &scaling.scale},
+      {"u_scale_relative", &scaling.u_scale_relative}};
+  for (const auto& [key, target] : numbers) {
+    OPL_ASSIGN_OR_RETURN(member, f.Member(sj, path, key));
+    OPL_ASSIGN_OR_RETURN(value, f.Number(*member, path + "." + key));
+    if (value < 0.0) return f.Error(path + "." + key, "must be >= 0, got " + member->dump());
+    *target = value;
+  }
+  return scaling;
+}
+
 Result<SourceCalibration> ParseSource(const Fields& f, const json& src, const std::string& path) {
   SourceCalibration source;
   OPL_ASSIGN_OR_RETURN(name_json, f.Member(src, path, "name"));
@@ -204,6 +277,10 @@ Result<SourceCalibration> ParseSource(const Fields& f, const json& src, const st
   if (Status st = source.pattern.Validate(); !st.ok()) {
     return f.Error(path + ".beams", st.message());
   }
+  if (src.contains("quality")) {
+    OPL_ASSIGN_OR_RETURN(quality, ParseQuality(f, src["quality"], path + ".quality"));
+    source.quality = quality;
+  }
   return source;
 }
 
@@ -244,6 +321,12 @@ template <typename Vec>
 std::string JsonArray(const Vec& v) {
   std::string out = "[";
   for (int i = 0; i < v.size(); ++i) out += (i ? ", " : "") + JsonDouble(v[i]);
+  return out + "]";
+}
+
+std::string JsonMatrix3(const Eigen::Matrix3d& M) {
+  std::string out = "[";
+  for (int r = 0; r < 3; ++r) out += (r ? ", " : "") + JsonArray(Eigen::Vector3d(M.row(r).transpose()));
   return out + "]";
 }
 
@@ -320,6 +403,10 @@ Result<ModuleCalibration> ParseModuleCalibrationJson(const std::string& text,
                                               Fields::Index("separations", i), names));
     cal.separations.push_back(std::move(sep));
   }
+  if (doc.contains("scaling")) {
+    OPL_ASSIGN_OR_RETURN(scaling, ParseScaling(f, doc["scaling"]));
+    cal.scaling = scaling;
+  }
   if (Status st = cal.Validate(); !st.ok()) return Status::ParseError(name + ": " + st.message());
   return cal;
 }
@@ -363,7 +450,21 @@ Result<std::string> FormatModuleCalibrationJson(const ModuleCalibration& calibra
       }
       out += "}";
     }
-    out += beams.empty() ? "]\n    }" : "\n      ]\n    }";
+    out += beams.empty() ? "]" : "\n      ]";
+    if (s.quality) {
+      const SourceCalibrationQuality& quality = *s.quality;
+      out += ",\n      \"quality\": {\"slices\": " + std::to_string(quality.slices) +
+             ", \"samples_used\": " + std::to_string(quality.samples_used) +
+             ", \"samples_flagged\": " + std::to_string(quality.samples_flagged) +
+             ", \"beams_dropped\": " + std::to_string(quality.beams_dropped) +
+             ",\n        \"rms_residual_urad\": " + JsonDouble(quality.rms_residual_urad) +
+             ", \"variance_factor\": " + JsonDouble(quality.variance_factor) +
+             ",\n        \"mean_point_to_ray_mm\": " + JsonDouble(quality.mean_point_to_ray_mm) +
+             ", \"max_point_to_ray_mm\": " + JsonDouble(quality.max_point_to_ray_mm) +
+             ",\n        \"origin_cov_mm2\": " + JsonMatrix3(quality.origin_cov_mm2) +
+             ",\n        \"rotation_xyz_cov_rad2\": " + JsonMatrix3(quality.rotation_xyz_cov_rad2) + "}";
+    }
+    out += "\n    }";
   }
   out += "\n  ],\n  \"separations\": [";
   for (size_t i = 0; i < calibration.separations.size(); ++i) {
@@ -372,7 +473,19 @@ Result<std::string> FormatModuleCalibrationJson(const ModuleCalibration& calibra
            ", \"to\": " + JsonString(sep.to) + ", \"length_mm\": " + JsonDouble(sep.length_mm) +
            ", \"u_length_mm\": " + JsonDouble(sep.u_length_mm) + "}";
   }
-  out += calibration.separations.empty() ? "]\n}\n" : "\n  ]\n}\n";
+  out += calibration.separations.empty() ? "]" : "\n  ]";
+  if (calibration.scaling) {
+    const CalibrationScaling& sc = *calibration.scaling;
+    out += ",\n  \"scaling\": {\"from_target\": " + JsonString(sc.from_target) +
+           ", \"to_target\": " + JsonString(sc.to_target) +
+           ", \"artifact_length_mm\": " + JsonDouble(sc.artifact_length_mm) +
+           ", \"u_artifact_length_mm\": " + JsonDouble(sc.u_artifact_length_mm) +
+           ",\n    \"measured_length\": " + JsonDouble(sc.measured_length) +
+           ", \"u_measured_length\": " + JsonDouble(sc.u_measured_length) +
+           ", \"scale\": " + JsonDouble(sc.scale) +
+           ", \"u_scale_relative\": " + JsonDouble(sc.u_scale_relative) + "}";
+  }
+  out += "\n}\n";
   return out;
 }
 

@@ -21,6 +21,8 @@ Result<PointsCsv> PointsCsv::Parse(const std::string& text, const std::string& n
                                 "' (a points CSV needs x, y and z columns)");
     }
   }
+  int id_column = table.FindColumn("id");
+  if (id_column < 0) id_column = table.FindColumn("name");
   for (size_t i = 0; i < table.header.raw.size(); ++i) {
     out.header_line_ += (i ? "," : "") + table.header.raw[i];
   }
@@ -35,6 +37,7 @@ Result<PointsCsv> PointsCsv::Parse(const std::string& text, const std::string& n
     out.points_.push_back(p);
     out.lines_.push_back(row.line);
     out.raw_.push_back(row.raw);
+    if (id_column >= 0) out.ids_.push_back(row.fields[id_column]);
   }
   return out;
 }

@@ -46,6 +46,13 @@ Result<SpotsCsvData> ParseSpotsCsv(const std::string& text, const std::string& n
 
   SpotsCsvData data;
   data.has_sigmas = num_sigma == 3;
+  for (const std::string& field : table.header.fields) {
+    const int index = table.FindColumn(field);
+    bool used = index == slice_column;
+    for (int k = 0; k < 5; ++k) used |= index == column[k];
+    for (int k = 0; k < 3; ++k) used |= index == sigma_column[k];
+    if (!used) data.other_columns.push_back(field);
+  }
   data.spots.reserve(table.rows.size());
   for (const CsvRecord& row : table.rows) {
     const std::string where = name + ":" + std::to_string(row.line);

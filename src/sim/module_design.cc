@@ -124,7 +124,7 @@ Result<ModuleCalibration> ExactCalibration(const ModuleDesign& design) {
   for (const SourceDesign& s : design.sources) {
     Result<BeamPattern> pattern = MakePattern(s);
     if (!pattern.ok()) return pattern.status();
-    cal.sources.push_back({s.name, std::move(pattern).value(), s.scene_from_source});
+    cal.sources.push_back({s.name, std::move(pattern).value(), s.scene_from_source, {}});
   }
   cal.separations = ModuleCalibration::SeparationsFromOrigins(cal.sources);
   OPL_RETURN_IF_ERROR(cal.Validate());

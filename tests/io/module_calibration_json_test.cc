@@ -100,6 +100,64 @@ TEST(ModuleCalibrationJson, RoundTripIsBitExact) {
   EXPECT_EQ(dir.Entries(), std::vector<std::string>{"cal.json"});
 }
 
+TEST(ModuleCalibrationJson, QualityAndScalingRoundTripBitExact) {
+  ModuleCalibration cal = AwkwardCalibration();
+  SourceCalibrationQuality q;
+  q.slices = 10;
+  q.samples_used = 1089;
+  q.samples_flagged = 3;
+  q.beams_dropped = 1;
+  q.rms_residual_urad = 61.0 / 7.0;
+  q.variance_factor = 1.0 / 3.0;
+  q.mean_point_to_ray_mm = 0.1 / 9.0;
+  q.max_point_to_ray_mm = std::sqrt(0.2);
+  q.origin_cov_mm2 << 1e-3 / 3, 1e-5, 2e-5, 1e-5, 2e-4 / 7, 0.0, 2e-5, 0.0, M_PI * 1e-4;
+  q.rotation_xyz_cov_rad2 = 1e-9 * Eigen::Matrix3d::Identity() / 3.0;
+  cal.sources[1].quality = q;
+  CalibrationScaling sc;
+  sc.from_target = "T,1";
+  sc.to_target = "T\"2";
+  sc.artifact_length_mm = 1677.66;
+  sc.u_artifact_length_mm = 0.005;
+  sc.measured_length = 1342.1 / 3.0;
+  sc.u_measured_length = 0.01 / 7.0;
+  sc.scale = 1677.66 / sc.measured_length;
+  sc.u_scale_relative = 1e-5 / 3.0;
+  cal.scaling = sc;
+  Result<std::string> text = FormatModuleCalibrationJson(cal);
+  ASSERT_TRUE(text.ok());
+  Result<ModuleCalibration> back = ParseModuleCalibrationJson(*text, "cal.json");
+  ASSERT_TRUE(back.ok()) << back.status().ToString();
+  ExpectBitIdentical(cal, *back);
+  EXPECT_FALSE(back->sources[0].quality.has_value());
+  ASSERT_TRUE(back->sources[1].quality.has_value());
+  const SourceCalibrationQuality& r = *back->sources[1].quality;
+  EXPECT_EQ(r.slices, 10);
+  EXPECT_EQ(r.samples_used, 1089);
+  EXPECT_EQ(r.samples_flagged, 3);
+  EXPECT_EQ(r.beams_dropped, 1);
+  EXPECT_TRUE(SameBits(r.rms_residual_urad, q.rms_residual_urad));
+  EXPECT_TRUE(SameBits(r.variance_factor, q.variance_factor));
+  EXPECT_TRUE(SameBits(r.mean_point_to_ray_mm, q.mean_point_to_ray_mm));
+  EXPECT_TRUE(SameBits(r.max_point_to_ray_mm, q.max_point_to_ray_mm));
+  for (int k = 0; k < 9; ++k) {
+    EXPECT_TRUE(SameBits(r.origin_cov_mm2.data()[k], q.origin_cov_mm2.data()[k]));
+    EXPECT_TRUE(SameBits(r.rotation_xyz_cov_rad2.data()[k], q.rotation_xyz_cov_rad2.data()[k]));
+  }
+  ASSERT_TRUE(back->scaling.has_value());
+  EXPECT_EQ(back->scaling->from_target, "T,1");
+  EXPECT_EQ(back->scaling->to_target, "T\"2");
+  EXPECT_TRUE(SameBits(back->scaling->scale, sc.scale));
+  EXPECT_TRUE(SameBits(back->scaling->u_scale_relative, sc.u_scale_relative));
+  EXPECT_TRUE(SameBits(back->scaling->measured_length, sc.measured_length));
+  // A bad quality field is named by its path.
+  std::string broken = *text;
+  broken.replace(broken.find("\"samples_flagged\": 3"), 20, "\"samples_flagged\": -3");
+  Result<ModuleCalibration> bad = ParseModuleCalibrationJson(broken, "cal.json");
+  ASSERT_FALSE(bad.ok());
+  EXPECT_EQ(bad.status().message(), "cal.json: sources[1].quality.samples_flagged: must be >= 0, got -3");
+}
+
 TEST(ModuleCalibrationJson, WrittenFileHasTheDocumentedLayout) {
   Result<std::string> text = FormatModuleCalibrationJson(testing_support::SyntheticCalibration(2, 3));
   ASSERT_TRUE(text.ok());

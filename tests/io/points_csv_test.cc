@@ -24,6 +24,7 @@ TEST(PointsCsv, ScalesXyzAndKeepsEverythingElseVerbatim) {
   ASSERT_EQ(table->num_points(), 2);
   EXPECT_EQ(table->points()[0], Eigen::Vector3d(0.1, 0.2, 0.3));
   EXPECT_EQ(table->lines(), (std::vector<int>{2, 4}));
+  EXPECT_EQ(table->ids(), (std::vector<std::string>{"T1", "T2"}));  // fields are trimmed
   const double s = 1.0 / 3.0;
   ASSERT_TRUE(table->Scale(s).ok());
   const std::string out = table->Format();

@@ -50,6 +50,7 @@ TEST(SpotsCsv, ColumnsInAnyOrderWithExtraColumnsAndSigmas) {
   EXPECT_TRUE(r->has_sigmas);
   Eigen::Matrix3d expected = Eigen::Vector3d(0.1 * 0.1, 0.2 * 0.2, 0.3 * 0.3).asDiagonal();
   EXPECT_EQ(*o.cov_in_scene, expected);
+  EXPECT_EQ(r->other_columns, (std::vector<std::string>{"note", "score"}));
 }
 
 TEST(SpotsCsv, QuotedNamesCrlfBlankLinesAndSliceColumn) {

@@ -14,9 +14,9 @@ ModuleCalibration ThreeSourceCalibration(const Eigen::Vector3d& a, const Eigen::
                                          const Eigen::Vector3d& c, double u_cal) {
   ModuleCalibration cal;
   const BeamPattern pattern = test::TangentLatticePattern(5, 0.4);
-  cal.sources = {{"A", pattern, Rigid3d(Eigen::Matrix3d::Identity(), a)},
-                 {"B", pattern, Rigid3d(Eigen::Matrix3d::Identity(), b)},
-                 {"C", pattern, Rigid3d(Eigen::Matrix3d::Identity(), c)}};
+  cal.sources = {{"A", pattern, Rigid3d(Eigen::Matrix3d::Identity(), a), {}},
+                 {"B", pattern, Rigid3d(Eigen::Matrix3d::Identity(), b), {}},
+                 {"C", pattern, Rigid3d(Eigen::Matrix3d::Identity(), c), {}}};
   cal.separations = ModuleCalibration::SeparationsFromOrigins(cal.sources);
   for (auto& s : cal.separations) s.u_length_mm = u_cal;
   return cal;
@@ -116,7 +116,8 @@ TEST(ScaleFactor, LengthUncertaintyMatchesEmpiricalSpread) {
   const Rigid3d pose_a(R, Eigen::Vector3d(10, 27.5, 5));
   const Rigid3d pose_b(R, pose_a.translation + R * Eigen::Vector3d(0, -55, 0));
   ModuleCalibration cal;
-  cal.sources = {{"A", pattern, Rigid3d()}, {"B", pattern, Rigid3d(Eigen::Matrix3d::Identity(), Eigen::Vector3d(0, -55, 0))}};
+  cal.sources = {{"A", pattern, Rigid3d(), {}},
+                 {"B", pattern, Rigid3d(Eigen::Matrix3d::Identity(), Eigen::Vector3d(0, -55, 0)), {}}};
   cal.separations = ModuleCalibration::SeparationsFromOrigins(cal.sources);
   const int trials = 1000;
   std::vector<double> L;

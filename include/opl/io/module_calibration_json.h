@@ -8,7 +8,15 @@
 //                 "beams": [{"id": 1, "az_rad": .., "el_rad": ..,
 //                            "cov_azel_rad2": [[..,..],[..,..]]}]}],   (optional)
 //    "separations": [{"from": "A", "to": "B", "length_mm": 55.0,
-//                     "u_length_mm": 0.002}]}
+//                     "u_length_mm": 0.002}],
+//    "scaling": {...}}                                              (optional)
+//
+// opl_calibrate also writes, per source, an optional "quality" object
+// (SourceCalibrationQuality: slices, samples_used, samples_flagged,
+// beams_dropped, rms_residual_urad, variance_factor, mean_point_to_ray_mm,
+// max_point_to_ray_mm, origin_cov_mm2, rotation_xyz_cov_rad2) and at the top
+// level the artifact "scaling" (CalibrationScaling) when one was used; both
+// are read back when present and checked like every other field.
 //
 // The pose is calibration_from_source: origin_mm is the projection origin,
 // R = Rx(a) Ry(b) Rz(c) (geometry/rotation.h). The writer also writes the

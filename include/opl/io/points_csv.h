@@ -33,6 +33,9 @@ class PointsCsv {
   int num_points() const { return static_cast<int>(points_.size()); }
   const std::vector<Eigen::Vector3d>& points() const { return points_; }  // file order
   const std::vector<int>& lines() const { return lines_; }  // 1-based line of each point
+  // The point names of an `id` column (or, without one, a `name` column),
+  // unquoted, in file order; empty when the file has neither column.
+  const std::vector<std::string>& ids() const { return ids_; }
 
   // Multiplies every point by `s` (x' = s * x, per coordinate, in double).
   // InvalidArgument when s is not finite and > 0; the points are unchanged then.
@@ -47,6 +50,7 @@ class PointsCsv {
   std::vector<std::vector<std::string>> raw_;    // raw fields of each row
   std::vector<Eigen::Vector3d> points_;
   std::vector<int> lines_;
+  std::vector<std::string> ids_;
   int column_[3] = {-1, -1, -1};                 // x, y, z column indices
 };
 

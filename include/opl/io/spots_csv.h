@@ -37,6 +37,9 @@ struct SpotsCsvData {
   // empty otherwise.
   std::vector<int> slices;
   bool has_sigmas = false;  // the file has sx, sy, sz columns
+  // Header names of the columns this reader does not use, in file order (a
+  // tool may refuse them: opl_calibrate does, to catch misnamed columns).
+  std::vector<std::string> other_columns;
 };
 
 // Parses CSV text; `name` (the file path) is used in `where` and in messages.

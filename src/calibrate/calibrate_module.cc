@@ -1,0 +1,139 @@
+#include "opl/calibrate/calibrate_module.h"
+
+#include <cmath>
+#include <map>
+
+#include "opl/core/format.h"
+
+namespace opl {
+
+Result<CalibrationScaling> ComputeArtifactScaling(const ArtifactMeasurement& artifact) {
+  const std::string which =
+      "artifact " + artifact.from_target + "-" + artifact.to_target + ": ";
+  if (!(std::isfinite(artifact.length_mm) && artifact.length_mm > 0.0)) {
+    return Status::InvalidArgument(which + "length must be finite and > 0 mm, got " +
+                                   FormatNumber(artifact.length_mm));
+  }
+  if (!(std::isfinite(artifact.u_length_mm) && artifact.u_length_mm >= 0.0)) {
+    return Status::InvalidArgument(which + "length uncertainty must be finite and >= 0 mm, got " +
+                                   FormatNumber(artifact.u_length_mm));
+  }
+  if (!artifact.from_point.allFinite() || !artifact.to_point.allFinite()) {
+    return Status::InvalidArgument(which + "target coordinates are not finite");
+  }
+  const Eigen::Vector3d v = artifact.to_point - artifact.from_point;
+  const double d = v.norm();
+  if (!(d > 0.0)) return Status::InvalidArgument(which + "the two targets coincide");
+  const Eigen::Vector3d g = v / d;
+  Eigen::Matrix3d C = Eigen::Matrix3d::Zero();
+  if (artifact.from_cov) C += *artifact.from_cov;
+  if (artifact.to_cov) C += *artifact.to_cov;
+  if (!C.allFinite()) return Status::InvalidArgument(which + "target covariance not finite");
+  CalibrationScaling s;
+  s.from_target = artifact.from_target;
+  s.to_target = artifact.to_target;
+  s.artifact_length_mm = artifact.length_mm;
+  s.u_artifact_length_mm = artifact.u_length_mm;
+  s.measured_length = d;
+  s.u_measured_length = std::sqrt(std::max(0.0, g.dot(C * g)));
+  s.scale = artifact.length_mm / d;
+  const double rel_a = artifact.u_length_mm / artifact.length_mm;
+  const double rel_d = s.u_measured_length / d;
+  s.u_scale_relative = std::sqrt(rel_a * rel_a + rel_d * rel_d);
+  return s;
+}
+
+Result<ModuleCalibrationResult> CalibrateModule(const std::vector<Spot>& spots,
+                                                const std::vector<int>& slices,
+                                                const std::optional<CalibrationScaling>& scaling,
+                                                const CalibrateModuleOptions& options) {
+  if (slices.empty() && !spots.empty()) {
+    return Status::InvalidArgument(
+        "the spots have no slice column: a calibration session needs the slice of every spot");
+  }
+  if (slices.size() != spots.size()) {
+    return Status::InvalidArgument("slices (" + std::to_string(slices.size()) +
+                                   ") and spots (" + std::to_string(spots.size()) +
+                                   ") differ in number");
+  }
+  if (spots.empty()) return Status::InvalidArgument("no spots");
+  if (options.beams_per_side &&
+      (*options.beams_per_side < 3 || *options.beams_per_side % 2 == 0)) {
+    return Status::InvalidArgument("beams per side must be odd and >= 3, got " +
+                                   std::to_string(*options.beams_per_side));
+  }
+  double scale = 1.0;
+  if (scaling) {
+    if (!(std::isfinite(scaling->scale) && scaling->scale > 0.0 &&
+          std::isfinite(scaling->u_scale_relative) && scaling->u_scale_relative >= 0.0)) {
+      return Status::InvalidArgument("artifact scaling: scale must be finite and > 0");
+    }
+    scale = scaling->scale;
+  }
+  // Samples by source (order of first appearance); each slice to one source.
+  std::vector<std::string> order;
+  std::map<std::string, std::vector<CalibrationSample>> by_source;
+  std::map<std::string, int> max_id;
+  std::map<int, size_t> slice_owner;  // slice -> first spot index
+  for (size_t i = 0; i < spots.size(); ++i) {
+    const Spot& s = spots[i];
+    auto [owner, inserted] = slice_owner.emplace(slices[i], i);
+    if (!inserted && spots[owner->second].source != s.source) {
+      const Spot& first = spots[owner->second];
+      return Status::InvalidArgument(
+          s.where + ": slice " + std::to_string(slices[i]) + " holds spots of source '" +
+          s.source + "' and of source '" + first.source + "' (" + first.where +
+          "): a slice is one grid at one screen position");
+    }
+    if (!by_source.count(s.source)) order.push_back(s.source);
+    CalibrationSample sample;
+    sample.beam_id = s.observation.beam_id;
+    sample.slice = slices[i];
+    sample.point_mm = scale * s.observation.point_in_scene;
+    if (s.observation.cov_in_scene) sample.cov_mm2 = scale * scale * *s.observation.cov_in_scene;
+    by_source[s.source].push_back(sample);
+    int& m = max_id[s.source];
+    m = std::max(m, sample.beam_id);
+  }
+  ModuleCalibrationResult result;
+  for (const std::string& name : order) {
+    int n = 3;
+    if (options.beams_per_side) {
+      n = *options.beams_per_side;
+    } else {
+      while (n * n < max_id[name]) n += 2;
+    }
+    Result<SourceCalibrationResult> source =
+        CalibrateSource(name, n, by_source[name], options.source);
+    if (!source.ok()) return source.status();
+    result.calibration.sources.push_back(source->calibration);
+    result.sources.push_back(std::move(*source));
+  }
+  const double u_rel = scaling ? scaling->u_scale_relative : 0.0;
+  for (size_t i = 0; i < result.sources.size(); ++i) {
+    for (size_t j = i + 1; j < result.sources.size(); ++j) {
+      const SourceCalibrationResult& a = result.sources[i];
+      const SourceCalibrationResult& b = result.sources[j];
+      const Eigen::Vector3d v = b.calibration.calibration_from_source.translation -
+                                a.calibration.calibration_from_source.translation;
+      const double L = v.norm();
+      if (!(L > 0.0)) {
+        return Status::NoSolution("sources '" + a.calibration.name + "' and '" +
+                                  b.calibration.name + "' have the same origin");
+      }
+      const Eigen::Vector3d g = v / L;
+      const Eigen::Matrix3d C = a.pose_covariance.bottomRightCorner<3, 3>() +
+                                b.pose_covariance.bottomRightCorner<3, 3>();
+      Separation sep;
+      sep.from = a.calibration.name;
+      sep.to = b.calibration.name;
+      sep.length_mm = L;
+      sep.u_length_mm = std::sqrt(std::max(0.0, g.dot(C * g)) + (L * u_rel) * (L * u_rel));
+      result.calibration.separations.push_back(sep);
+    }
+  }
+  result.calibration.scaling = scaling;
+  return result;
+}
+
+}  // namespace opl

@@ -105,7 +105,13 @@ Result<ModuleCalibrationResult> CalibrateModule(const std::vector<Spot>& spots,
     }
     Result<SourceCalibrationResult> source =
         CalibrateSource(name, n, by_source[name], options.source);
-    if (!source.ok()) return source.status();
+    if (!source.ok()) {
+      if (options.beams_per_side) return source.status();
+      return Status(source.status().code(),
+                    source.status().message() + " (grid of " + std::to_string(n) + " x " +
+                        std::to_string(n) + " inferred from the largest beam id, " +
+                        std::to_string(max_id[name]) + ": give the beams per side if wrong)");
+    }
     result.calibration.sources.push_back(source->calibration);
     result.sources.push_back(std::move(*source));
   }

@@ -823,14 +823,15 @@ Result<SourceCalibrationResult> Calibrator::Run() {
   // Robust phase: IRLS with the chosen loss, starting from the line-fit inliers.
   OPL_RETURN_IF_ERROR(UpdateWhitening());
   OPL_RETURN_IF_ERROR(Solve());
-  // The robust phase only when the first solve leaves a sample beyond the
-  // flagging threshold (a clean session goes straight to flagging).
+  // The robust phase only when the first solve used a sample beyond the
+  // flagging threshold (samples the line fits already left out do not count:
+  // they did not pull the solution; a clean session goes straight to flagging).
   EvaluateResiduals();
   bool suspicious = false;
   {
     const double limit = options_.outlier_threshold * SigmaForFlagging();
     for (size_t i = 0; i < samples_.size(); ++i) {
-      suspicious |= !in_dropped_beam_[i] && normalized_[i] > limit;
+      suspicious |= weight_[i] > 0.0 && normalized_[i] > limit;
     }
   }
   if (options_.loss != RobustLoss::kNone && suspicious) {

@@ -1,6 +1,7 @@
 // Test helpers shared by the command-line tests: run a built tool as a user
 // would (through the shell) and capture its exit code, stdout and stderr.
-// The test target defines OPL_MEASURE_EXE and OPL_SIMULATE_EXE (the tools'
+// The test target defines OPL_MEASURE_EXE, OPL_SIMULATE_EXE and
+// OPL_CALIBRATE_EXE (the tools'
 // paths) and OPL_EXAMPLES_DIR (tests/apps/CMakeLists.txt).
 #pragma once
 
@@ -34,6 +35,7 @@ inline RunResult Run(const std::string& exe, const std::string& args) {
 
 inline RunResult Measure(const std::string& args) { return Run(OPL_MEASURE_EXE, args); }
 inline RunResult Simulate(const std::string& args) { return Run(OPL_SIMULATE_EXE, args); }
+inline RunResult Calibrate(const std::string& args) { return Run(OPL_CALIBRATE_EXE, args); }
 
 }  // namespace cli_test
 }  // namespace opl

@@ -1,0 +1,244 @@
+// opl_calibrate: a module calibration from a calibration session (docs/cli.md,
+// docs/calibrate.md). The work is done by opl::CalibrateModule
+// (include/opl/calibrate/) and the report by include/opl/report/; this file
+// parses options, reads files, writes outputs atomically and maps errors to
+// exit codes.
+#include <cmath>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "cli_common.h"
+#include "opl/calibrate/calibrate_module.h"
+#include "opl/io/atomic_file.h"
+#include "opl/io/module_calibration_json.h"
+#include "opl/io/points_csv.h"
+#include "opl/io/spots_csv.h"
+#include "opl/report/calibration_report.h"
+#include "opl/report/grid_heatmap.h"
+
+namespace {
+
+constexpr const char* kTool = "opl_calibrate";
+
+// Columns opl_simulate writes as ground truth, which opl_calibrate ignores;
+// any other unknown column is refused unless --allow-extra-columns.
+const char* const kKnownExtraColumns[] = {"screen", "outlier", "true_x", "true_y", "true_z"};
+
+struct Args {
+  std::string spots_path;
+  std::string out_path;
+  std::string report_dir;
+  int beams_per_side = 0;
+  bool allow_extra_columns = false;
+  std::string loss = "cauchy";
+  double outlier_threshold = 5.0;
+  std::string targets_path;
+  std::vector<std::string> artifact_ids;
+  double artifact_length_mm = 0.0;
+  double artifact_u_mm = 0.0;
+};
+
+// Reads the artifact's two targets from the targets file and computes the
+// scaling; exit code on failure.
+std::optional<int> ArtifactScaling(const Args& args,
+                                   std::optional<opl::CalibrationScaling>* scaling) {
+  using namespace opl;
+  Result<PointsCsv> targets = PointsCsv::Read(args.targets_path);
+  if (!targets.ok()) return cli::FailInput(kTool, targets.status());
+  if (targets->ids().empty()) {
+    return cli::Fail(kTool,
+                     args.targets_path + ": no 'id' or 'name' column to find the artifact's "
+                                         "targets by",
+                     cli::kExitBadInput);
+  }
+  ArtifactMeasurement artifact;
+  artifact.from_target = args.artifact_ids[0];
+  artifact.to_target = args.artifact_ids[1];
+  artifact.length_mm = args.artifact_length_mm;
+  artifact.u_length_mm = args.artifact_u_mm;
+  for (int end = 0; end < 2; ++end) {
+    const std::string& id = args.artifact_ids[end];
+    int found = -1;
+    for (int i = 0; i < targets->num_points(); ++i) {
+      if (targets->ids()[i] != id) continue;
+      if (found >= 0) {
+        return cli::Fail(kTool,
+                         args.targets_path + ":" + std::to_string(targets->lines()[i]) +
+                             ": target '" + id + "' appears twice (also line " +
+                             std::to_string(targets->lines()[found]) + ")",
+                         cli::kExitBadInput);
+      }
+      found = i;
+    }
+    if (found < 0) {
+      return cli::Fail(kTool, args.targets_path + ": no target '" + id + "' (--artifact)",
+                       cli::kExitBadInput);
+    }
+    (end == 0 ? artifact.from_point : artifact.to_point) = targets->points()[found];
+  }
+  Result<CalibrationScaling> computed = ComputeArtifactScaling(artifact);
+  if (!computed.ok()) return cli::FailInput(kTool, computed.status());
+  *scaling = *computed;
+  return std::nullopt;
+}
+
+int Run(int argc, char** argv) {
+  using namespace opl;
+  Args args;
+  CLI::App app(
+      "Calibrates an optically projected length scale module from a calibration session\n"
+      "(docs/calibrate.md): the module stays fixed, a screen is placed at several depths\n"
+      "and each grid is measured on it, one grid at a time. For every source it finds the\n"
+      "projection origin, the pose and every beam's pointing direction (one joint solve,\n"
+      "no starting guess, wrong samples flagged), then the separations between the\n"
+      "origins: the module's calibrated length scales, with their uncertainty.\n"
+      "\n"
+      "Input: a spots CSV (docs/formats.md) with a `slice` column. A slice is one grid on\n"
+      "one screen position (one photograph), so it holds the spots of one source; all\n"
+      "slices are in one frame, in mm, unless an artifact scales them (--targets,\n"
+      "--artifact, --artifact-length-mm). Columns other than source,beam,x,y,z,sx,sy,sz,\n"
+      "slice (and opl_simulate's ground truth screen,outlier,true_x,true_y,true_z) are\n"
+      "refused, to catch a misnamed column; --allow-extra-columns ignores them.\n"
+      "\n"
+      "Output: the module calibration JSON (--out), with per-beam covariances and per-\n"
+      "source quality figures, and a summary on stdout. With --report DIR also:\n"
+      "beams.csv (per-beam quality), samples.csv (every sample's residual and status)\n"
+      "and heatmap_<source>.png (mean point-to-ray distance per beam over the grid).\n",
+      kTool);
+  app.add_option("--spots", args.spots_path,
+                 "Spots CSV of the session: source,beam,x,y,z[,sx,sy,sz],slice")
+      ->required()
+      ->type_name("FILE");
+  app.add_option("--out", args.out_path, "Module calibration JSON to write (atomically)")
+      ->required()
+      ->type_name("FILE");
+  app.add_option("--report", args.report_dir,
+                 "Folder for beams.csv, samples.csv and heatmap_<source>.png (created if "
+                 "missing; files written atomically)")
+      ->type_name("DIR");
+  app.add_option("--beams-per-side", args.beams_per_side,
+                 "n of the n x n grids (odd >= 3); default: the smallest odd n with n^2 >= the\n"
+                 "largest beam id of each source")
+      ->type_name("N");
+  app.add_flag("--allow-extra-columns", args.allow_extra_columns,
+               "Ignore unknown columns of the spots CSV instead of refusing them");
+  app.add_option("--loss", args.loss,
+                 "Robust loss before flagging wrong samples: cauchy (default), huber or none")
+      ->check(CLI::IsMember({"cauchy", "huber", "none"}))
+      ->type_name("NAME");
+  app.add_option("--outlier-threshold", args.outlier_threshold,
+                 "Flag samples beyond this many standard deviations (default 5)")
+      ->type_name("SIGMAS");
+  CLI::Option* targets =
+      app.add_option("--targets", args.targets_path,
+                     "Points CSV (id or name, x, y, z) holding the artifact's two targets, in\n"
+                     "the frame of the spots")
+          ->type_name("FILE");
+  CLI::Option* artifact = app.add_option("--artifact", args.artifact_ids,
+                                         "The artifact's two target ids, e.g. --artifact T1,T2")
+                              ->delimiter(',')
+                              ->expected(2)
+                              ->type_name("ID,ID");
+  CLI::Option* length =
+      app.add_option("--artifact-length-mm", args.artifact_length_mm,
+                     "Calibrated length of the artifact, mm (e.g. 1677.66)")
+          ->type_name("MM");
+  CLI::Option* u_length =
+      app.add_option("--artifact-u-mm", args.artifact_u_mm,
+                     "Standard uncertainty (k = 1) of that length, mm (default 0)")
+          ->type_name("MM");
+  targets->needs(artifact)->needs(length);
+  artifact->needs(targets);
+  length->needs(targets);
+  u_length->needs(targets);
+  app.footer(cli::HelpFooter(
+      "  opl_simulate slices --design examples/prototype_design.json --depths 750:65:1335 \\\n"
+      "      --out slices.csv\n"
+      "  opl_calibrate --spots slices.csv --out module.json --report report/\n"
+      "  opl_calibrate --spots session.csv --targets targets.csv --artifact T1,T2 \\\n"
+      "      --artifact-length-mm 1677.66 --artifact-u-mm 0.005 --out module.json\n"));
+  if (std::optional<int> code = cli::ParseCommandLine(app, argc, argv)) return *code;
+
+  CalibrateModuleOptions options;
+  if (app.count("--beams-per-side") > 0) options.beams_per_side = args.beams_per_side;
+  options.source.loss = args.loss == "cauchy" ? RobustLoss::kCauchy
+                        : args.loss == "huber" ? RobustLoss::kHuber
+                                               : RobustLoss::kNone;
+  options.source.outlier_threshold = args.outlier_threshold;
+  if (Status st = options.source.Validate(); !st.ok()) {
+    return cli::Fail(kTool, "invalid option: " + st.message(), cli::kExitBadInput);
+  }
+
+  Result<SpotsCsvData> spots = ReadSpotsCsv(args.spots_path);
+  if (!spots.ok()) return cli::FailInput(kTool, spots.status());
+  if (!args.allow_extra_columns) {
+    for (const std::string& column : spots->other_columns) {
+      bool known = false;
+      for (const char* k : kKnownExtraColumns) known |= column == k;
+      if (!known) {
+        return cli::Fail(kTool,
+                         args.spots_path + ":1: unknown column '" + column +
+                             "' (expected source,beam,x,y,z,sx,sy,sz,slice; "
+                             "--allow-extra-columns ignores it)",
+                         cli::kExitBadInput);
+      }
+    }
+  }
+  if (spots->slices.empty()) {
+    return cli::Fail(kTool,
+                     args.spots_path + ":1: missing column 'slice' (a calibration session "
+                                       "needs the slice of every spot)",
+                     cli::kExitBadInput);
+  }
+  std::optional<CalibrationScaling> scaling;
+  if (!args.targets_path.empty()) {
+    if (std::optional<int> code = ArtifactScaling(args, &scaling)) return *code;
+  }
+
+  Result<ModuleCalibrationResult> result =
+      CalibrateModule(spots->spots, spots->slices, scaling, options);
+  if (!result.ok()) return cli::FailInput(kTool, result.status());
+  Result<std::string> json = FormatModuleCalibrationJson(result->calibration);
+  if (!json.ok()) return cli::Fail(kTool, json.status().message(), cli::kExitNoSolution);
+
+  // Everything is computed (and the PNGs rendered) before the first write.
+  if (!args.report_dir.empty()) {
+    std::vector<std::pair<std::string, std::vector<unsigned char>>> images;
+    for (const SourceCalibrationResult& s : result->sources) {
+      Result<std::vector<unsigned char>> png = RenderGridHeatmapPng(PointToRayHeatmap(s));
+      if (!png.ok()) return cli::Fail(kTool, png.status().message(), cli::kExitInternalError);
+      images.emplace_back("heatmap_" + s.calibration.name + ".png", std::move(*png));
+    }
+    std::error_code ec;
+    std::filesystem::create_directories(args.report_dir, ec);
+    if (ec) {
+      return cli::Fail(kTool, args.report_dir + ": cannot create the report folder: " + ec.message(),
+                       cli::kExitWriteFailed);
+    }
+    const std::filesystem::path dir(args.report_dir);
+    for (const auto& [name, text] :
+         {std::pair<std::string, std::string>{"beams.csv", BeamQualityCsv(*result)},
+          {"samples.csv", SampleResidualsCsv(*result)}}) {
+      if (Status st = WriteFileAtomically((dir / name).string(), text); !st.ok()) {
+        return cli::FailWrite(kTool, st);
+      }
+    }
+    for (const auto& [name, bytes] : images) {
+      const std::string text(bytes.begin(), bytes.end());
+      if (Status st = WriteFileAtomically((dir / name).string(), text); !st.ok()) {
+        return cli::FailWrite(kTool, st);
+      }
+    }
+  }
+  if (Status st = WriteFileAtomically(args.out_path, *json); !st.ok()) {
+    return cli::FailWrite(kTool, st);
+  }
+  return cli::PrintToStdout(kTool, CalibrationSummaryText(*result));
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  return opl::cli::RunTool(kTool, [&] { return Run(argc, argv); });
+}

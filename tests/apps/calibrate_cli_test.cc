@@ -1,0 +1,185 @@
+// Runs `opl_calibrate` as a user would: simulate a calibration session with
+// opl_simulate slices, calibrate it, read the calibration back, use it with
+// opl_measure; and every documented refusal of bad input.
+#include <algorithm>
+#include <filesystem>
+#include <set>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "apps/cli_test_util.h"
+#include <nlohmann/json.hpp>
+
+#include "opl/io/module_calibration_json.h"
+
+namespace opl {
+namespace {
+
+using cli_test::Calibrate;
+using cli_test::RunResult;
+using cli_test::Simulate;
+using ::testing::HasSubstr;
+using testing_support::ReadAll;
+
+class CalibrateCli : public ::testing::Test {
+ protected:
+  const std::string design_ = std::string(OPL_EXAMPLES_DIR) + "/prototype_design.json";
+  testing_support::TempDir dir_;
+
+  // A session of the example design into slices.csv.
+  std::string Session(const std::string& extra = "") {
+    const std::string path = dir_.File("slices.csv");
+    const RunResult r = Simulate("slices --design " + design_ + " --depths 750:65:1335 --out " +
+                                 path + " --seed 7 " + extra);
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    return path;
+  }
+
+  void ExpectRefused(const RunResult& r, int code, const std::string& message) {
+    EXPECT_EQ(r.exit_code, code) << r.err;
+    EXPECT_THAT(r.err, HasSubstr(message));
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;  // one line
+    EXPECT_FALSE(std::filesystem::exists(dir_.File("module.json")));
+    EXPECT_FALSE(std::filesystem::exists(dir_.File("report")));
+  }
+};
+
+TEST_F(CalibrateCli, HelpTeachesTheSessionAndTheOutputs) {
+  const RunResult r = Calibrate("--help");
+  EXPECT_EQ(r.exit_code, 0);
+  EXPECT_THAT(r.out, HasSubstr("A slice is one grid on"));
+  EXPECT_THAT(r.out, HasSubstr("--artifact-length-mm"));
+  EXPECT_THAT(r.out, HasSubstr("heatmap_<source>.png"));
+  EXPECT_THAT(r.out, HasSubstr("Exit codes:"));
+}
+
+TEST_F(CalibrateCli, CalibratesASimulatedSessionAndTheResultMeasures) {
+  const std::string slices = Session("--missing 0.05 --outliers 0.01");
+  const RunResult r = Calibrate("--spots " + slices + " --out " + dir_.File("module.json") +
+                                " --report " + dir_.File("report"));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.err, "");
+  EXPECT_THAT(r.out, HasSubstr("source A (11 x 11, 10 slices)"));
+  EXPECT_THAT(r.out, HasSubstr("flagged as wrong"));
+  EXPECT_THAT(r.out, HasSubstr("A-B  5"));
+  Result<ModuleCalibration> cal = ReadModuleCalibrationJson(dir_.File("module.json"));
+  ASSERT_TRUE(cal.ok()) << cal.status().ToString();
+  ASSERT_EQ(cal->separations.size(), 1u);
+  // 0.02 mm is about one standard uncertainty of this separation.
+  EXPECT_NEAR(cal->separations[0].length_mm, 55.0, 0.08);
+  EXPECT_GT(cal->separations[0].u_length_mm, 0.01);
+  EXPECT_LT(cal->separations[0].u_length_mm, 0.03);
+  ASSERT_TRUE(cal->sources[0].quality.has_value());
+  // 1% of the ~230 spots of each screen were made wrong: 2 a screen, 20 in all,
+  // shared by the two grids; every one is flagged.
+  EXPECT_EQ(cal->sources[0].quality->samples_flagged + cal->sources[1].quality->samples_flagged, 20);
+  EXPECT_EQ(cal->sources[0].pattern.beams().size(), 121u);
+  std::set<std::string> report_files;
+  for (const auto& e : std::filesystem::directory_iterator(dir_.File("report"))) {
+    report_files.insert(e.path().filename().string());
+  }
+  EXPECT_EQ(report_files,
+            (std::set<std::string>{"beams.csv", "heatmap_A.png", "heatmap_B.png", "samples.csv"}));
+  const std::string png = ReadAll(dir_.File("report/heatmap_A.png"));
+  EXPECT_EQ(png.substr(0, 8), "\x89PNG\r\n\x1a\n");
+  const std::string beams = ReadAll(dir_.File("report/beams.csv"));
+  EXPECT_EQ(std::count(beams.begin(), beams.end(), '\n'), 1 + 242);
+  EXPECT_THAT(beams, HasSubstr("\nA,61,5,5,0,0,"));  // the gauge: central beam at az = el = 0
+
+  // The new calibration measures a scene of the same module (noise-free spots:
+  // s = 1 up to the calibration's own error; u(s) comes from the residuals that
+  // the calibrated directions leave, about 0.1%).
+  ASSERT_EQ(Simulate("spots --design " + design_ + " --out " + dir_.File("scene.csv") +
+                     " --seed 3 --noise-scale 0")
+                .exit_code,
+            0);
+  const RunResult m =
+      cli_test::Measure("--calibration " + dir_.File("module.json") + " --spots " +
+                        dir_.File("scene.csv") + " --json");
+  ASSERT_EQ(m.exit_code, 0) << m.err;
+  const nlohmann::json report = nlohmann::json::parse(m.out);
+  const double s = report["scale_factor"].get<double>();
+  const double u = report["u_scale_factor"].get<double>();
+  EXPECT_LT(std::abs(s - 1.0), 2.0 * u);
+  EXPECT_LT(u, 3e-3);
+}
+
+TEST_F(CalibrateCli, ArtifactScalesTheSession) {
+  const std::string slices = Session("--noise-scale 0");
+  // The session's frame is the design's (mm); the artifact says it is 1% short.
+  dir_.Write("targets.csv", "id,x,y,z\nT1,0,0,0\nT2,1661.0495049504951,0,0\nX9,5,5,5\n");
+  const RunResult r = Calibrate("--spots " + slices + " --out " + dir_.File("module.json") +
+                                " --targets " + dir_.File("targets.csv") +
+                                " --artifact T1,T2 --artifact-length-mm 1677.66 --artifact-u-mm 0.0167766");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_THAT(r.out, HasSubstr("scaling         artifact T1-T2 1677.66 mm"));
+  Result<ModuleCalibration> cal = ReadModuleCalibrationJson(dir_.File("module.json"));
+  ASSERT_TRUE(cal.ok());
+  EXPECT_NEAR(cal->separations[0].length_mm, 55.0 * 1.01, 1e-6);
+  EXPECT_NEAR(cal->separations[0].u_length_mm, 55.0 * 1.01 * 1e-5, 1e-8);
+  ASSERT_TRUE(cal->scaling.has_value());
+  EXPECT_NEAR(cal->scaling->scale, 1.01, 1e-12);
+
+  std::filesystem::remove(dir_.File("module.json"));
+  ExpectRefused(Calibrate("--spots " + slices + " --out " + dir_.File("module.json") + " --targets " +
+                          dir_.File("targets.csv") + " --artifact T1,T7 --artifact-length-mm 1677.66"),
+                3, "no target 'T7' (--artifact)");
+  ExpectRefused(Calibrate("--spots " + slices + " --out " + dir_.File("module.json") +
+                          " --artifact T1,T2 --artifact-length-mm 1677.66"),
+                2, "--artifact requires --targets");
+}
+
+TEST_F(CalibrateCli, BadSessionsAreRefusedAndNothingIsWritten) {
+  const std::string out = " --out " + dir_.File("module.json") + " --report " + dir_.File("report");
+  // One depth only.
+  ASSERT_EQ(Simulate("slices --design " + design_ + " --depths 900 --out " + dir_.File("one.csv")).exit_code, 0);
+  ExpectRefused(Calibrate("--spots " + dir_.File("one.csv") + out), 4,
+                "opl_calibrate: source 'A': all samples come from one slice (0): a calibration "
+                "needs the screen at two depths or more");
+  // A source with fewer than three usable beams.
+  dir_.Write("few.csv",
+             "source,beam,x,y,z,slice\n"
+             "A,61,800,0,0,0\nA,61,900,0,0,1\nA,60,800,5,0,0\nA,60,900,5.6,0,1\n");
+  ExpectRefused(Calibrate("--spots " + dir_.File("few.csv") + out + " --beams-per-side 11"), 4,
+                "only 2 beam(s) have 2 or more usable samples: a calibration needs at least three");
+  // Without --beams-per-side the grid is inferred from the largest id (61: 9 x 9),
+  // and the message says so.
+  ExpectRefused(Calibrate("--spots " + dir_.File("few.csv") + out), 4,
+                "the central beam 41 has fewer than 2 usable samples: the gauge (central beam az "
+                "= el = 0) cannot be fixed (grid of 9 x 9 inferred from the largest beam id, 61: "
+                "give the beams per side if wrong)");
+  // A slice that mixes two sources.
+  dir_.Write("mixed.csv",
+             "source,beam,x,y,z,slice\n"
+             "A,61,800,0,0,0\nB,61,800,-55,0,0\n");
+  ExpectRefused(Calibrate("--spots " + dir_.File("mixed.csv") + out), 3,
+                "mixed.csv:3: slice 0 holds spots of source 'B' and of source 'A' (" +
+                    dir_.File("mixed.csv") + ":2): a slice is one grid at one screen position");
+  // Unknown columns (refused unless allowed), a missing slice column.
+  const std::string slices = Session();
+  std::string text = ReadAll(slices);
+  text.replace(0, text.find('\n'), text.substr(0, text.find('\n')) + ",sigma_x");
+  for (size_t at = text.find('\n', 0); (at = text.find('\n', at + 1)) != std::string::npos;) {
+    text.insert(at, ",1");
+    at += 2;
+  }
+  dir_.Write("extra.csv", text);
+  ExpectRefused(Calibrate("--spots " + dir_.File("extra.csv") + out), 3,
+                "extra.csv:1: unknown column 'sigma_x' (expected source,beam,x,y,z,sx,sy,sz,slice; "
+                "--allow-extra-columns ignores it)");
+  dir_.Write("noslice.csv", "source,beam,x,y,z\nA,61,800,0,0\n");
+  ExpectRefused(Calibrate("--spots " + dir_.File("noslice.csv") + out), 3,
+                "noslice.csv:1: missing column 'slice'");
+  // Malformed CSV: file and line.
+  dir_.Write("bad.csv", "source,beam,x,y,z,slice\nA,61,800,0,zero,0\n");
+  ExpectRefused(Calibrate("--spots " + dir_.File("bad.csv") + out), 3, "bad.csv:2: field 'z'");
+  // Unknown --loss: usage.
+  ExpectRefused(Calibrate("--spots " + slices + out + " --loss bisquare"), 2, "--loss");
+  // With --allow-extra-columns the same file calibrates.
+  const RunResult ok = Calibrate("--spots " + dir_.File("extra.csv") + out + " --allow-extra-columns");
+  EXPECT_EQ(ok.exit_code, 0) << ok.err;
+}
+
+}  // namespace
+}  // namespace opl

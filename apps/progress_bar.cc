@@ -1,0 +1,57 @@
+#include "progress_bar.h"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <utility>
+
+namespace opl {
+namespace cli {
+
+bool StderrIsTerminal() { return isatty(fileno(stderr)) != 0; }
+
+ProgressBar::ProgressBar(std::string label, bool enabled)
+    : label_(std::move(label)), enabled_(enabled), start_(std::chrono::steady_clock::now()) {}
+
+ProgressBar::~ProgressBar() { Finish(); }
+
+std::string ProgressBar::Render(const std::string& label, int done, int total, double elapsed_s) {
+  constexpr int kWidth = 24;
+  const double fraction = total > 0 ? std::clamp(static_cast<double>(done) / total, 0.0, 1.0) : 1.0;
+  const int filled = static_cast<int>(fraction * kWidth);
+  std::string bar = label + " [" + std::string(static_cast<size_t>(filled), '#') +
+                    std::string(static_cast<size_t>(kWidth - filled), '.') + "]";
+  char buffer[128];
+  std::snprintf(buffer, sizeof(buffer), " %d/%d %3d%%", done, total,
+                static_cast<int>(std::floor(fraction * 100.0)));
+  bar += buffer;
+  if (done > 0 && elapsed_s > 0.0) {
+    const double rate = done / elapsed_s;
+    const double left = (total - done) / rate;
+    std::snprintf(buffer, sizeof(buffer), "  %.0f/s  %.1f s left", rate, left);
+    bar += buffer;
+  }
+  return bar;
+}
+
+void ProgressBar::Update(int done, int total) {
+  if (!enabled_) return;
+  const double elapsed =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  // Pad to erase a longer previous line.
+  std::fprintf(stderr, "\r%-78s", Render(label_, done, total, elapsed).c_str());
+  std::fflush(stderr);
+  drawn_ = true;
+}
+
+void ProgressBar::Finish() {
+  if (!drawn_) return;
+  std::fprintf(stderr, "\r%78s\r", "");
+  std::fflush(stderr);
+  drawn_ = false;
+}
+
+}  // namespace cli
+}  // namespace opl

@@ -1,0 +1,40 @@
+// A one-line progress bar on stderr for long command-line runs:
+//   mc [##########..........]  2300/5000  46%  4210/s  0.6 s left
+// drawn only when enabled (the tools enable it when stderr is a terminal, so
+// logs and pipes stay quiet), redrawn in place with '\r', erased by Finish().
+#pragma once
+
+#include <chrono>
+#include <string>
+
+namespace opl {
+namespace cli {
+
+// True when stderr is a terminal (isatty).
+bool StderrIsTerminal();
+
+class ProgressBar {
+ public:
+  ProgressBar(std::string label, bool enabled);
+  ~ProgressBar();
+  ProgressBar(const ProgressBar&) = delete;
+  ProgressBar& operator=(const ProgressBar&) = delete;
+
+  // Redraws the bar for `done` of `total` (rate and time left from the time
+  // since construction). Does nothing when disabled.
+  void Update(int done, int total);
+  // Erases the bar (once); also done by the destructor.
+  void Finish();
+
+  // The text of the bar (without '\r'), for tests.
+  static std::string Render(const std::string& label, int done, int total, double elapsed_s);
+
+ private:
+  std::string label_;
+  bool enabled_;
+  bool drawn_ = false;
+  std::chrono::steady_clock::time_point start_;
+};
+
+}  // namespace cli
+}  // namespace opl

@@ -1,0 +1,467 @@
+#include "opl/uncertainty/monte_carlo.h"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <condition_variable>
+#include <cstdio>
+#include <exception>
+#include <mutex>
+#include <random>
+#include <thread>
+#include <utility>
+
+#include <nlohmann/json.hpp>
+
+#include "opl/geometry/rotation.h"
+#include "opl/model/module_calibration.h"
+#include "opl/scale/scale_factor.h"
+#include "opl/sim/random.h"
+#include "opl/sim/simulate_spots.h"
+
+namespace opl {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+std::string Format(const char* fmt, double v) {
+  char buffer[64];
+  std::snprintf(buffer, sizeof(buffer), fmt, v);
+  return buffer;
+}
+
+std::string Triple(const char* fmt, const Eigen::Vector3d& v) {
+  return "(" + Format(fmt, v.x()) + ", " + Format(fmt, v.y()) + ", " + Format(fmt, v.z()) + ")";
+}
+
+double WrapAngle(double a) {
+  a = std::remainder(a, 2.0 * kPi);  // [-pi, pi]
+  return a <= -kPi ? a + 2.0 * kPi : a;
+}
+
+Eigen::Vector3d StdDevs(const Eigen::Matrix3d& cov) {
+  return cov.diagonal().cwiseMax(0.0).cwiseSqrt();
+}
+
+// One source as every iteration needs it.
+struct SourceSetup {
+  std::string name;
+  BeamPattern pattern;
+  Rigid3d pose;
+  Eigen::Vector3d angles = Eigen::Vector3d::Zero();
+  std::vector<SpotObservation> truth;  // noise-free, carrying Sigma
+};
+
+// What one iteration produced.
+struct IterationResult {
+  bool ok = false;
+  std::string error;
+  std::vector<Eigen::Vector3d> origins;        // per source
+  std::vector<Eigen::Vector3d> angle_offsets;  // per source, wrapped, from the design's angles
+  std::vector<double> lengths;                 // per pair
+  double scale = 0.0;
+};
+
+struct Problem {
+  const std::vector<SourceSetup>* sources = nullptr;
+  const ModuleCalibration* calibration = nullptr;
+  std::vector<std::pair<std::string, std::string>> pairs;
+  Eigen::Matrix3d noise_factor = Eigen::Matrix3d::Zero();  // R_n diag(sigma)
+  LocateOptions locate;
+  bool start_from_design_pose = true;
+  uint64_t seed = 0;
+};
+
+IterationResult RunIteration(const Problem& problem, int iteration) {
+  IterationResult result;
+  const uint64_t iteration_seed = IterationSeed(problem.seed, iteration);
+  std::mt19937_64 rng(iteration_seed);
+  NormalGenerator normal;
+  LocateOptions locate = problem.locate;
+  locate.ransac_seed = SplitMix64(iteration_seed).Next();
+
+  const std::vector<SourceSetup>& sources = *problem.sources;
+  std::vector<LocatedOrigin> located;
+  located.reserve(sources.size());
+  std::vector<SpotObservation> spots;
+  for (const SourceSetup& source : sources) {
+    spots = source.truth;
+    for (SpotObservation& spot : spots) {
+      Eigen::Vector3d z;
+      for (int k = 0; k < 3; ++k) z[k] = normal(rng);
+      spot.point_in_scene += problem.noise_factor * z;
+    }
+    if (problem.start_from_design_pose) locate.initial_scene_from_source = source.pose;
+    Result<LocateResult> r = LocateSource(source.pattern, spots, locate);
+    if (!r.ok()) {
+      result.error = "source '" + source.name + "': " + r.status().message();
+      return result;
+    }
+    result.origins.push_back(r->scene_from_source.translation);
+    Eigen::Vector3d offset;
+    for (int k = 0; k < 3; ++k) offset[k] = WrapAngle(r->rotation_xyz_rad[k] - source.angles[k]);
+    result.angle_offsets.push_back(offset);
+    located.push_back({source.name, r->scene_from_source.translation, r->origin_covariance});
+  }
+  Result<ScaleResult> scale = ComputeScaleFactor(*problem.calibration, located);
+  if (!scale.ok()) {
+    result.error = scale.status().message();
+    return result;
+  }
+  for (const auto& [from, to] : problem.pairs) {
+    for (const LengthScale& l : scale->lengths) {
+      if (l.from == from && l.to == to) result.lengths.push_back(l.photo);
+    }
+  }
+  if (result.lengths.size() != problem.pairs.size()) {
+    result.error = "a calibrated separation was not measured";
+    return result;
+  }
+  result.scale = scale->scale_factor;
+  result.ok = true;
+  return result;
+}
+
+nlohmann::ordered_json VectorJson(const Eigen::Vector3d& v) {
+  return nlohmann::ordered_json::array({v.x(), v.y(), v.z()});
+}
+
+nlohmann::ordered_json IntervalJson(const SampleSummary& s, const CoverageInterval& c) {
+  if (!s.has_interval) return nullptr;
+  return nlohmann::ordered_json::array({c.low, c.high});
+}
+
+}  // namespace
+
+Status MonteCarloOptions::Validate() const {
+  if (iterations < 1) {
+    return Status::InvalidArgument("iterations must be >= 1, got " + std::to_string(iterations));
+  }
+  if (threads < 0) {
+    return Status::InvalidArgument("threads must be >= 0 (0: every core), got " +
+                                   std::to_string(threads));
+  }
+  if (!(coverage_probability > 0.0 && coverage_probability < 1.0)) {
+    return Status::InvalidArgument("coverage_probability must be in (0, 1), got " +
+                                   std::to_string(coverage_probability));
+  }
+  if (!(std::isfinite(progress_interval_s) && progress_interval_s > 0.0)) {
+    return Status::InvalidArgument("progress_interval_s must be finite and > 0, got " +
+                                   std::to_string(progress_interval_s));
+  }
+  if (Status st = locate.Validate(); !st.ok()) {
+    return Status::InvalidArgument("locate options: " + st.message());
+  }
+  return Status::Ok();
+}
+
+uint64_t IterationSeed(uint64_t seed, int64_t iteration) {
+  // SplitMix64's k-th output only depends on seed + k * gamma: jump there.
+  return SplitMix64(seed + static_cast<uint64_t>(iteration) * 0x9E3779B97F4A7C15ull).Next();
+}
+
+SampleSummary Summarize(const std::vector<double>& values, double coverage_probability) {
+  SampleSummary s;
+  if (values.empty()) return s;
+  double sum = 0.0;
+  for (double v : values) sum += v;
+  s.mean = sum / static_cast<double>(values.size());
+  if (values.size() > 1) {
+    double ss = 0.0;
+    for (double v : values) ss += (v - s.mean) * (v - s.mean);
+    s.std_dev = std::sqrt(ss / static_cast<double>(values.size() - 1));
+  }
+  std::vector<double> sorted = values;
+  std::sort(sorted.begin(), sorted.end());
+  Result<CoverageInterval> symmetric = CoverageIntervalOfSorted(
+      sorted, coverage_probability, CoverageIntervalKind::kProbabilisticallySymmetric);
+  Result<CoverageInterval> shortest =
+      CoverageIntervalOfSorted(sorted, coverage_probability, CoverageIntervalKind::kShortest);
+  if (symmetric.ok() && shortest.ok()) {
+    s.symmetric = *symmetric;
+    s.shortest = *shortest;
+    s.has_interval = true;
+  }
+  return s;
+}
+
+Result<MonteCarloReport> RunMeasurementMonteCarlo(const ModuleDesign& design,
+                                                  const MonteCarloOptions& options) {
+  OPL_RETURN_IF_ERROR(options.Validate());
+  if (Status st = design.Validate(); !st.ok()) {
+    return Status::InvalidArgument("module design: " + st.message());
+  }
+  if (design.sources.size() < 2) {
+    return Status::NoSolution("the design has " + std::to_string(design.sources.size()) +
+                              " source: a length needs two");
+  }
+  const Eigen::Matrix3d sigma = design.SpotCovarianceMm2();
+  if (!(design.spot_noise_mm.array() > 0.0).any()) {
+    return Status::InvalidArgument("spot_noise_mm is zero on every axis: nothing to simulate");
+  }
+  Result<ModuleCalibration> calibration = ExactCalibration(design);
+  if (!calibration.ok()) return calibration.status();
+
+  // The noise-free spots, each carrying Sigma.
+  SpotSimulationOptions exact;
+  exact.attach_covariance = false;
+  Result<std::vector<SimulatedSpot>> simulated = SimulateSpots(design, exact);
+  if (!simulated.ok()) return simulated.status();
+  std::vector<SourceSetup> sources;
+  for (const SourceDesign& d : design.sources) {
+    SourceSetup s;
+    s.name = d.name;
+    const SourceCalibration* c = calibration->FindSource(d.name);
+    s.pattern = c->pattern;
+    s.pose = d.scene_from_source;
+    s.angles = XyzAnglesRadFromRotation(d.scene_from_source.RotationMatrix());
+    for (const SimulatedSpot& spot : *simulated) {
+      if (spot.spot.source != d.name) continue;
+      SpotObservation o;
+      o.beam_id = spot.spot.observation.beam_id;
+      o.point_in_scene = spot.true_point_in_scene;
+      o.cov_in_scene = sigma;
+      s.truth.push_back(o);
+    }
+    if (s.truth.empty()) {
+      return Status::NoSolution("source '" + d.name + "': no beam hits the surface (" +
+                                design.surface.TypeName() + ")");
+    }
+    sources.push_back(std::move(s));
+  }
+
+  MonteCarloReport report;
+  report.iterations = options.iterations;
+  report.seed = options.seed;
+  report.coverage_probability = options.coverage_probability;
+  report.spot_noise_mm = design.spot_noise_mm;
+
+  // First order: the noise-free spots with Sigma attached.
+  Problem problem;
+  problem.sources = &sources;
+  problem.calibration = &*calibration;
+  problem.locate = options.locate;
+  problem.start_from_design_pose = options.start_from_design_pose;
+  problem.seed = options.seed;
+  problem.noise_factor = design.noise_frame_rotation * design.spot_noise_mm.asDiagonal();
+  std::vector<LocatedOrigin> located;
+  for (const SourceSetup& s : sources) {
+    LocateOptions locate = options.locate;
+    locate.initial_scene_from_source = s.pose;
+    Result<LocateResult> r = LocateSource(s.pattern, s.truth, locate);
+    if (!r.ok()) {
+      return Status::NoSolution("source '" + s.name + "', noise-free spots: " +
+                                r.status().message());
+    }
+    MonteCarloSource m;
+    m.name = s.name;
+    m.spots = static_cast<int>(s.truth.size());
+    m.true_origin_mm = s.pose.translation;
+    m.true_rotation_xyz_rad = s.angles;
+    m.origin_first_order_std_mm = StdDevs(r->origin_covariance);
+    m.rotation_first_order_std_rad = StdDevs(r->rotation_xyz_covariance);
+    report.sources.push_back(m);
+    located.push_back({s.name, r->scene_from_source.translation, r->origin_covariance});
+  }
+  Result<ScaleResult> first_order = ComputeScaleFactor(*calibration, located);
+  if (!first_order.ok()) return first_order.status();
+  for (const Separation& sep : calibration->separations) {
+    MonteCarloLength l;
+    l.from = sep.from;
+    l.to = sep.to;
+    l.true_mm = sep.length_mm;
+    for (const LengthScale& ls : first_order->lengths) {
+      if (ls.from == sep.from && ls.to == sep.to) l.photo_mm.first_order_std = ls.u_photo;
+    }
+    report.lengths.push_back(l);
+    problem.pairs.emplace_back(sep.from, sep.to);
+  }
+
+  // The iterations, on a pool of threads; results by index.
+  const int m = options.iterations;
+  int threads = options.threads;
+  if (threads == 0) threads = std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+  threads = std::min(threads, m);
+  report.threads = threads;
+  std::vector<IterationResult> results(static_cast<size_t>(m));
+  std::atomic<int> next{0};
+  std::atomic<int> done{0};
+  std::mutex mutex;
+  std::condition_variable all_done;
+  auto worker = [&]() {
+    for (;;) {
+      const int i = next.fetch_add(1);
+      if (i >= m) break;
+      try {
+        results[static_cast<size_t>(i)] = RunIteration(problem, i);
+      } catch (const std::exception& e) {
+        results[static_cast<size_t>(i)].ok = false;
+        results[static_cast<size_t>(i)].error = std::string("exception: ") + e.what();
+      }
+      if (done.fetch_add(1) + 1 == m) {
+        std::lock_guard<std::mutex> lock(mutex);
+        all_done.notify_all();
+      }
+    }
+  };
+  std::vector<std::thread> pool;
+  pool.reserve(static_cast<size_t>(threads));
+  for (int t = 0; t < threads; ++t) pool.emplace_back(worker);
+  if (options.progress) {
+    const auto interval = std::chrono::duration<double>(options.progress_interval_s);
+    std::unique_lock<std::mutex> lock(mutex);
+    while (!all_done.wait_for(lock, interval, [&] { return done.load() >= m; })) {
+      const int d = done.load();
+      lock.unlock();
+      options.progress(d, m);
+      lock.lock();
+    }
+  }
+  for (std::thread& t : pool) t.join();
+  if (options.progress) options.progress(m, m);
+
+  // Reduction, in index order.
+  const size_t ns = sources.size();
+  std::vector<std::vector<double>> origin(ns * 3), angle(ns * 3);
+  for (int i = 0; i < m; ++i) {
+    const IterationResult& r = results[static_cast<size_t>(i)];
+    if (!r.ok) {
+      if (report.failed++ == 0) report.first_failure = "iteration " + std::to_string(i) + ": " + r.error;
+      continue;
+    }
+    ++report.succeeded;
+    for (size_t s = 0; s < ns; ++s) {
+      for (int k = 0; k < 3; ++k) {
+        origin[s * 3 + static_cast<size_t>(k)].push_back(r.origins[s][k]);
+        angle[s * 3 + static_cast<size_t>(k)].push_back(r.angle_offsets[s][k]);
+      }
+    }
+    for (size_t l = 0; l < report.lengths.size(); ++l) {
+      report.lengths[l].samples_mm.push_back(r.lengths[l]);
+    }
+    report.scale_samples.push_back(r.scale);
+  }
+  if (report.succeeded == 0) {
+    return Status::NoSolution("every one of the " + std::to_string(m) +
+                              " iterations failed; first: " + report.first_failure);
+  }
+  const double p = options.coverage_probability;
+  for (size_t s = 0; s < ns; ++s) {
+    MonteCarloSource& out = report.sources[s];
+    for (int k = 0; k < 3; ++k) {
+      const SampleSummary o = Summarize(origin[s * 3 + static_cast<size_t>(k)], p);
+      const SampleSummary a = Summarize(angle[s * 3 + static_cast<size_t>(k)], p);
+      out.origin_mean_mm[k] = o.mean;
+      out.origin_std_mm[k] = o.std_dev;
+      out.rotation_mean_rad[k] = out.true_rotation_xyz_rad[k] + a.mean;
+      out.rotation_std_rad[k] = a.std_dev;
+    }
+  }
+  for (MonteCarloLength& l : report.lengths) {
+    const double first = l.photo_mm.first_order_std;
+    l.photo_mm = Summarize(l.samples_mm, p);
+    l.photo_mm.first_order_std = first;
+  }
+  report.scale_factor = Summarize(report.scale_samples, p);
+  report.scale_factor.first_order_std = first_order->u_scale_factor;
+  return report;
+}
+
+std::string MonteCarloReport::ToText() const {
+  std::string out;
+  out += "Monte Carlo (JCGM 101): " + std::to_string(iterations) + " iterations, " +
+         std::to_string(succeeded) + " located, " + std::to_string(failed) + " failed; seed " +
+         std::to_string(seed) + "; spot noise " + Triple("%.4g", spot_noise_mm) + " mm\n";
+  if (failed > 0) out += "  first failure: " + first_failure + "\n";
+  const std::string pct = Format("%g", coverage_probability * 100.0);
+  out += pct + " % coverage intervals: probabilistically symmetric (JCGM 101 7.7.1);"
+               " shortest (7.7.2) in the JSON\n";
+  out += "Lengths L_photo between origins (mm, design frame; MC = Monte Carlo, FO = first order):\n";
+  for (const MonteCarloLength& l : lengths) {
+    const SampleSummary& s = l.photo_mm;
+    out += "  " + l.from + "-" + l.to + ": true " + Format("%.4f", l.true_mm) + ", mean " +
+           Format("%.5f", s.mean) + ", std MC " + Format("%.5f", s.std_dev) + " FO " +
+           Format("%.5f", s.first_order_std) + " (MC/FO " +
+           Format("%.3f", s.first_order_std > 0 ? s.std_dev / s.first_order_std : 0.0) + ")";
+    if (s.has_interval) {
+      out += ", " + pct + " % [" + Format("%.5f", s.symmetric.low) + ", " +
+             Format("%.5f", s.symmetric.high) + "]";
+    }
+    out += "\n";
+  }
+  const SampleSummary& s = scale_factor;
+  out += "Scale factor s: mean " + Format("%.7f", s.mean) + " (bias " +
+         Format("%+.1f", (s.mean - 1.0) * 1e6) + " ppm), std MC " + Format("%.1f", s.std_dev * 1e6) +
+         " ppm FO " + Format("%.1f", s.first_order_std * 1e6) + " ppm";
+  if (s.has_interval) {
+    out += ", " + pct + " % [" + Format("%.7f", s.symmetric.low) + ", " +
+           Format("%.7f", s.symmetric.high) + "]";
+  }
+  out += "\n";
+  out += "Sources (std MC / FO; origin in mm, rotation angles R = Rx Ry Rz in urad):\n";
+  for (const MonteCarloSource& src : sources) {
+    out += "  " + src.name + " (" + std::to_string(src.spots) + " spots): origin mean " +
+           Triple("%.4f", src.origin_mean_mm) + "\n";
+    out += "    origin std   MC " + Triple("%.5f", src.origin_std_mm) + "  FO " +
+           Triple("%.5f", src.origin_first_order_std_mm) + "\n";
+    out += "    rotation std MC " + Triple("%.2f", src.rotation_std_rad * 1e6) + "  FO " +
+           Triple("%.2f", src.rotation_first_order_std_rad * 1e6) + "\n";
+  }
+  return out;
+}
+
+std::string MonteCarloReport::ToJson() const {
+  using nlohmann::ordered_json;
+  ordered_json doc;
+  doc["format"] = "opl.monte_carlo_report";
+  doc["version"] = 1;
+  doc["iterations"] = iterations;
+  doc["succeeded"] = succeeded;
+  doc["failed"] = failed;
+  if (failed > 0) doc["first_failure"] = first_failure;
+  doc["seed"] = seed;
+  doc["coverage_probability"] = coverage_probability;
+  doc["coverage_interval"] = "probabilistically_symmetric";
+  doc["spot_noise_mm"] = VectorJson(spot_noise_mm);
+  ordered_json length_array = ordered_json::array();
+  for (const MonteCarloLength& l : lengths) {
+    ordered_json j;
+    j["from"] = l.from;
+    j["to"] = l.to;
+    j["true_mm"] = l.true_mm;
+    j["mean_mm"] = l.photo_mm.mean;
+    j["std_mm"] = l.photo_mm.std_dev;
+    j["ci95_mm"] = IntervalJson(l.photo_mm, l.photo_mm.symmetric);
+    j["shortest_ci95_mm"] = IntervalJson(l.photo_mm, l.photo_mm.shortest);
+    j["first_order_std_mm"] = l.photo_mm.first_order_std;
+    length_array.push_back(j);
+  }
+  doc["lengths"] = length_array;
+  ordered_json source_array = ordered_json::array();
+  for (const MonteCarloSource& s : sources) {
+    ordered_json j;
+    j["name"] = s.name;
+    j["spots"] = s.spots;
+    j["true_origin_mm"] = VectorJson(s.true_origin_mm);
+    j["origin_mean_mm"] = VectorJson(s.origin_mean_mm);
+    j["origin_std_mm"] = VectorJson(s.origin_std_mm);
+    j["origin_first_order_std_mm"] = VectorJson(s.origin_first_order_std_mm);
+    j["true_rotation_rad"] = VectorJson(s.true_rotation_xyz_rad);
+    j["rotation_mean_rad"] = VectorJson(s.rotation_mean_rad);
+    j["rotation_std_rad"] = VectorJson(s.rotation_std_rad);
+    j["rotation_first_order_std_rad"] = VectorJson(s.rotation_first_order_std_rad);
+    source_array.push_back(j);
+  }
+  doc["sources"] = source_array;
+  ordered_json scale;
+  scale["mean"] = scale_factor.mean;
+  scale["std"] = scale_factor.std_dev;
+  scale["ci95"] = IntervalJson(scale_factor, scale_factor.symmetric);
+  scale["shortest_ci95"] = IntervalJson(scale_factor, scale_factor.shortest);
+  scale["first_order_std"] = scale_factor.first_order_std;
+  doc["scale_factor"] = scale;
+  return doc.dump(2) + "\n";
+}
+
+}  // namespace opl

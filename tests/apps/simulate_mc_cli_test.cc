@@ -1,0 +1,103 @@
+// Runs `opl_simulate mc` as a user would: the Monte Carlo uncertainty of a
+// measurement (JCGM 101) of examples/staggered_design.json, as JSON and text.
+#include <algorithm>
+#include <string>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "cli_test_util.h"
+
+namespace opl {
+namespace {
+
+using cli_test::RunResult;
+using cli_test::Simulate;
+using ::testing::HasSubstr;
+using ::testing::StartsWith;
+
+const std::string kDesign = std::string(OPL_EXAMPLES_DIR) + "/staggered_design.json";
+
+// A failed run: one line on stderr, nothing on stdout.
+void ExpectFailure(const RunResult& r, int exit_code, const std::string& err_prefix) {
+  EXPECT_EQ(r.exit_code, exit_code) << r.err;
+  EXPECT_THAT(r.err, StartsWith(err_prefix));
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  EXPECT_EQ(r.out, "");
+}
+
+TEST(SimulateMcCli, JsonReportHasTheDocumentedFields) {
+  const RunResult r =
+      Simulate("mc --design " + kDesign + " --iterations 40 --seed 5 --threads 1 --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.err, "");  // stderr is not a terminal: no progress bar
+  const nlohmann::json j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["format"], "opl.monte_carlo_report");
+  EXPECT_EQ(j["iterations"], 40);
+  EXPECT_EQ(j["succeeded"], 40);
+  EXPECT_EQ(j["failed"], 0);
+  EXPECT_EQ(j["coverage_interval"], "probabilistically_symmetric");
+  ASSERT_EQ(j["lengths"].size(), 1u);
+  const nlohmann::json& l = j["lengths"][0];
+  EXPECT_EQ(l["from"], "A");
+  EXPECT_EQ(l["to"], "B");
+  EXPECT_NEAR(l["mean_mm"].get<double>(), 55.154, 0.2);  // std(L) ~ 0.2 mm, 40 draws
+  EXPECT_GT(l["std_mm"].get<double>(), 0.0);
+  EXPECT_GT(l["first_order_std_mm"].get<double>(), 0.0);
+  ASSERT_EQ(l["ci95_mm"].size(), 2u);
+  EXPECT_LT(l["ci95_mm"][0].get<double>(), l["mean_mm"].get<double>());
+  EXPECT_GT(l["ci95_mm"][1].get<double>(), l["mean_mm"].get<double>());
+  ASSERT_EQ(j["sources"].size(), 2u);
+  EXPECT_EQ(j["sources"][0]["name"], "A");
+  EXPECT_EQ(j["sources"][1]["name"], "B");
+  for (const nlohmann::json& s : j["sources"]) {
+    ASSERT_EQ(s["origin_std_mm"].size(), 3u);
+    ASSERT_EQ(s["rotation_std_rad"].size(), 3u);
+    EXPECT_GT(s["origin_std_mm"][0].get<double>(), 0.0);
+  }
+  EXPECT_NEAR(j["scale_factor"]["mean"].get<double>(), 1.0, 1e-3);
+  EXPECT_GT(j["scale_factor"]["std"].get<double>(), 0.0);
+}
+
+TEST(SimulateMcCli, SameSeedSameOutputWhateverTheThreads) {
+  const std::string args = "mc --design " + kDesign + " --iterations 24 --seed 9 --json";
+  const RunResult one = Simulate(args + " --threads 1");
+  const RunResult two = Simulate(args + " --threads 2");
+  ASSERT_EQ(one.exit_code, 0) << one.err;
+  ASSERT_EQ(two.exit_code, 0) << two.err;
+  EXPECT_EQ(one.out, two.out);
+}
+
+TEST(SimulateMcCli, TextSummary) {
+  const RunResult r = Simulate("mc --design " + kDesign + " --iterations 30 --threads 2");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_THAT(r.out, StartsWith("Monte Carlo (JCGM 101): 30 iterations, 30 located, 0 failed"));
+  EXPECT_THAT(r.out, HasSubstr("probabilistically symmetric"));
+  EXPECT_THAT(r.out, HasSubstr("A-B: true 55.1543"));
+  EXPECT_THAT(r.out, HasSubstr("Scale factor s: mean"));
+  EXPECT_THAT(r.out, HasSubstr("rotation std MC"));
+}
+
+TEST(SimulateMcCli, Errors) {
+  ExpectFailure(Simulate("mc --design " + kDesign), 2, "opl_simulate: ");  // --iterations required
+  ExpectFailure(Simulate("mc --design " + kDesign + " --iterations 0"), 3,
+                "opl_simulate: invalid option: --iterations must be >= 1");
+  ExpectFailure(Simulate("mc --design " + kDesign + " --iterations 5 --threads -2"), 3,
+                "opl_simulate: invalid option: --threads");
+  ExpectFailure(Simulate("mc --design " + kDesign + " --iterations 5 --noise-scale 0"), 3,
+                "opl_simulate: spot_noise_mm is zero");
+  ExpectFailure(Simulate("mc --design /nonexistent/d.json --iterations 5"), 3, "opl_simulate: ");
+}
+
+TEST(SimulateMcCli, HelpTeaches) {
+  const RunResult r = Simulate("mc --help");
+  EXPECT_EQ(r.exit_code, 0);
+  EXPECT_THAT(r.out, HasSubstr("JCGM 101"));
+  EXPECT_THAT(r.out, HasSubstr("--iterations"));
+  EXPECT_THAT(r.out, HasSubstr("--threads"));
+  EXPECT_THAT(r.out, HasSubstr("probabilistically symmetric"));
+}
+
+}  // namespace
+}  // namespace opl

@@ -2,13 +2,16 @@
 // locating one 11 x 11 grid with no starting guess, initialisation included,
 // at most 50 us median on one core. BM_LocateWithGuess and BM_P3P are the
 // references in the same run (the cost of refinement alone, of one minimal
-// solve).
+// solve); BM_PoseNormalEquations is one evaluation of the refinement's normal
+// equations over the 121 spots (a noisy locate makes five: four
+// Levenberg-Marquardt iterations and one for the covariance).
 #include <random>
 
 #include <benchmark/benchmark.h>
 
 #include "opl/locate/locate_source.h"
 #include "opl/locate/p3p.h"
+#include "opl/locate/pose_normal_equations.h"
 #include "support/synthetic_source.h"
 
 namespace {
@@ -59,6 +62,30 @@ void BM_P3P(benchmark::State& state) {
   for (auto _ : state) benchmark::DoNotOptimize(opl::SolveP3P(f, X, &out));
 }
 BENCHMARK(BM_P3P)->Unit(benchmark::kMicrosecond);
+
+void BM_PoseNormalEquations(benchmark::State& state) {
+  const Scene s = MakeScene(true);
+  const Eigen::Matrix3d R = s.truth.RotationMatrix();
+  const double D = 1000.0;
+  opl::PoseNormalEquations problem;
+  problem.Reset(R, s.truth.translation - Eigen::Vector3d(D, 0.0, 0.0), D);
+  Eigen::Matrix2d W;  // ~ 1 / (0.1 mm at 1 m), lower triangular as LocateSource's
+  W << 1e4, 0.0, 1e3, 1.2e4;
+  for (const auto& spot : s.spots) {
+    problem.AddSpot(spot.point_in_scene,
+                    opl::BeamAngles::FromDirection(s.pattern.DirectionInSource(spot.beam_id)), W);
+  }
+  Eigen::Matrix<double, 6, 1> x;
+  x << 0.1, -0.2, 0.1, D + 0.1, 0.2, -0.1;  // ~0.1 mm off
+  double cost = 0.0;
+  Eigen::Matrix<double, 6, 6> JtJ;
+  Eigen::Matrix<double, 6, 1> Jtr;
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(problem.Evaluate(x.data(), &cost, &JtJ, &Jtr));
+    benchmark::DoNotOptimize(JtJ);
+  }
+}
+BENCHMARK(BM_PoseNormalEquations)->Unit(benchmark::kMicrosecond);
 
 }  // namespace
 

@@ -17,8 +17,10 @@
 // No starting guess is needed: the problem is a camera resection with known
 // bearing vectors, initialised by a minimal 3-point solver (P3P, in the spirit
 // of Lambda Twist, Persson & Nordberg, ECCV 2018) inside RANSAC, then refined by
-// Levenberg-Marquardt (ceres::TinySolver) on SourcePoseCostFunction, whose
-// analytic Jacobians are checked against autodiff. Any rotation works.
+// Levenberg-Marquardt on SourcePoseCostFunction's problem (analytic Jacobians,
+// checked against autodiff), run on its 6 x 6 normal equations summed spot by
+// spot (PoseNormalEquations, pose_normal_equations.h: ceres::TinySolver's steps
+// and stopping rules, tested to give TinySolver's pose). Any rotation works.
 //
 // Outliers: RANSAC's inliers are refined; then every spot whose whitened
 // residual norm exceeds `outlier_threshold` standard deviations is flagged and
@@ -83,7 +85,8 @@ struct LocateOptions {
   // spots are inliers of this guess; otherwise RANSAC runs as usual.
   std::optional<Rigid3d> initial_scene_from_source;
 
-  // Levenberg-Marquardt (ceres::TinySolver) settings for each refinement.
+  // Levenberg-Marquardt settings for each refinement (ceres::TinySolver's
+  // rules, pose_normal_equations.h).
   int max_iterations = 50;
   // Stop when the max-norm of the (Jacobi-scaled) gradient falls below this;
   // 0 disables.

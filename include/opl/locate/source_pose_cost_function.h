@@ -17,11 +17,13 @@
 // geometry/spherical.h. The angle differences are evaluated as the angles of
 // q rotated by the beam's (-az_i, -el_i), which is exact and well conditioned.
 //
-// One cost function for all spots keeps the per-iteration overhead of the
-// solver small (the measurement solve is run thousands of times by the Monte
-// Carlo); it is solved with ceres::TinySolver through
-// ceres::TinySolverCostFunctionAdapter, and is checked against automatic
-// differentiation and ceres::GradientChecker in tests/locate.
+// This is the reference definition of the measurement solve's residuals and
+// Jacobian, checked against automatic differentiation and
+// ceres::GradientChecker in tests/locate. LocateSource solves the same problem
+// through PoseNormalEquations (pose_normal_equations.h), which sums J^T J and
+// J^T r spot by spot instead of forming J; tests/locate checks its residuals,
+// normal equations and solves against this cost function under
+// ceres::TinySolver (through ceres::TinySolverCostFunctionAdapter).
 #pragma once
 
 #include <vector>

@@ -10,4 +10,10 @@ std::string FormatNumber(double value, int significant_digits) {
   return buf;
 }
 
+std::string FormatPrintf(const char* fmt, double value) {
+  char buffer[64];
+  std::snprintf(buffer, sizeof(buffer), fmt, value);
+  return buffer;
+}
+
 }  // namespace opl

@@ -6,19 +6,15 @@
 
 #include <nlohmann/json.hpp>
 
+#include "opl/core/format.h"
+
 namespace opl {
 namespace {
 
 constexpr double kRadToDeg = 180.0 / M_PI;
 
-std::string Format(const char* fmt, double v) {
-  char buffer[64];
-  std::snprintf(buffer, sizeof(buffer), fmt, v);
-  return buffer;
-}
-
 std::string Triple(const char* fmt, const Eigen::Vector3d& v) {
-  return "(" + Format(fmt, v.x()) + ", " + Format(fmt, v.y()) + ", " + Format(fmt, v.z()) + ")";
+  return "(" + FormatPrintf(fmt, v.x()) + ", " + FormatPrintf(fmt, v.y()) + ", " + FormatPrintf(fmt, v.z()) + ")";
 }
 
 std::string JoinInts(const std::vector<int>& ids) {
@@ -143,8 +139,8 @@ std::string MeasureReport::ToText() const {
     out += "  rotation x,y,z  " + Triple("%.6f", r.rotation_xyz_rad * kRadToDeg) +
            " deg (R = Rx Ry Rz), std dev " +
            Triple("%.6f", StdDevs(r.rotation_xyz_covariance) * kRadToDeg) + " deg\n";
-    out += "  rms residual    " + Format("%.3f", r.rms_residual_rad * 1e6) + " urad" +
-           (r.weighted ? ", chi2/dof " + Format("%.3f", r.variance_factor) +
+    out += "  rms residual    " + FormatPrintf("%.3f", r.rms_residual_rad * 1e6) + " urad" +
+           (r.weighted ? ", chi2/dof " + FormatPrintf("%.3f", r.variance_factor) +
                              " (weighted by spot sigmas)"
                        : std::string(" (unweighted; covariance from the residuals)")) +
            "\n";
@@ -154,19 +150,19 @@ std::string MeasureReport::ToText() const {
   }
   out += "Lengths (photo in scene units, cal in mm, s_ij in mm per scene unit):\n";
   for (const LengthScale& l : scale.lengths) {
-    out += "  " + l.from + "-" + l.to + ": photo " + Format("%.6f", l.photo) + " +- " +
-           Format("%.6f", l.u_photo) + ", cal " + Format("%.6f", l.cal_mm) + " +- " +
-           Format("%.6f", l.u_cal_mm) + ", s_ij " + Format("%.9f", l.scale) + " +- " +
-           Format("%.9f", l.u_scale) + "\n";
+    out += "  " + l.from + "-" + l.to + ": photo " + FormatPrintf("%.6f", l.photo) + " +- " +
+           FormatPrintf("%.6f", l.u_photo) + ", cal " + FormatPrintf("%.6f", l.cal_mm) + " +- " +
+           FormatPrintf("%.6f", l.u_cal_mm) + ", s_ij " + FormatPrintf("%.9f", l.scale) + " +- " +
+           FormatPrintf("%.9f", l.u_scale) + "\n";
   }
-  out += "Scale factor s = " + Format("%.9f", scale.scale_factor) + " +- " +
-         Format("%.9f", scale.u_scale_factor) + " mm per scene unit (" +
-         Format("%.1f", scale.u_scale_factor / scale.scale_factor * 1e6) + " ppm, k = 1)\n";
+  out += "Scale factor s = " + FormatPrintf("%.9f", scale.scale_factor) + " +- " +
+         FormatPrintf("%.9f", scale.u_scale_factor) + " mm per scene unit (" +
+         FormatPrintf("%.1f", scale.u_scale_factor / scale.scale_factor * 1e6) + " ppm, k = 1)\n";
   if (scale.dof > 0) {
-    out += "Consistency chi2/dof = " + Format("%.3f", scale.chi2) + "/" +
+    out += "Consistency chi2/dof = " + FormatPrintf("%.3f", scale.chi2) + "/" +
            std::to_string(scale.dof) + " = " +
-           Format("%.3f", scale.chi2 / scale.dof) + ", max normalized deviation " +
-           Format("%.3f", scale.max_normalized_deviation) + "\n";
+           FormatPrintf("%.3f", scale.chi2 / scale.dof) + ", max normalized deviation " +
+           FormatPrintf("%.3f", scale.max_normalized_deviation) + "\n";
   }
   return out;
 }

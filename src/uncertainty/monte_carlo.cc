@@ -14,6 +14,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "opl/core/format.h"
 #include "opl/geometry/rotation.h"
 #include "opl/model/module_calibration.h"
 #include "opl/scale/scale_factor.h"
@@ -23,16 +24,8 @@
 namespace opl {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-
-std::string Format(const char* fmt, double v) {
-  char buffer[64];
-  std::snprintf(buffer, sizeof(buffer), fmt, v);
-  return buffer;
-}
-
 std::string Triple(const char* fmt, const Eigen::Vector3d& v) {
-  return "(" + Format(fmt, v.x()) + ", " + Format(fmt, v.y()) + ", " + Format(fmt, v.z()) + ")";
+  return "(" + FormatPrintf(fmt, v.x()) + ", " + FormatPrintf(fmt, v.y()) + ", " + FormatPrintf(fmt, v.z()) + ")";
 }
 
 double WrapAngle(double a) {
@@ -374,29 +367,29 @@ std::string MonteCarloReport::ToText() const {
          std::to_string(succeeded) + " located, " + std::to_string(failed) + " failed; seed " +
          std::to_string(seed) + "; spot noise " + Triple("%.4g", spot_noise_mm) + " mm\n";
   if (failed > 0) out += "  first failure: " + first_failure + "\n";
-  const std::string pct = Format("%g", coverage_probability * 100.0);
+  const std::string pct = FormatPrintf("%g", coverage_probability * 100.0);
   out += pct + " % coverage intervals: probabilistically symmetric (JCGM 101 7.7.1);"
                " shortest (7.7.2) in the JSON\n";
   out += "Lengths L_photo between origins (mm, design frame; MC = Monte Carlo, FO = first order):\n";
   for (const MonteCarloLength& l : lengths) {
     const SampleSummary& s = l.photo_mm;
-    out += "  " + l.from + "-" + l.to + ": true " + Format("%.4f", l.true_mm) + ", mean " +
-           Format("%.5f", s.mean) + ", std MC " + Format("%.5f", s.std_dev) + " FO " +
-           Format("%.5f", s.first_order_std) + " (MC/FO " +
-           Format("%.3f", s.first_order_std > 0 ? s.std_dev / s.first_order_std : 0.0) + ")";
+    out += "  " + l.from + "-" + l.to + ": true " + FormatPrintf("%.4f", l.true_mm) + ", mean " +
+           FormatPrintf("%.5f", s.mean) + ", std MC " + FormatPrintf("%.5f", s.std_dev) + " FO " +
+           FormatPrintf("%.5f", s.first_order_std) + " (MC/FO " +
+           FormatPrintf("%.3f", s.first_order_std > 0 ? s.std_dev / s.first_order_std : 0.0) + ")";
     if (s.has_interval) {
-      out += ", " + pct + " % [" + Format("%.5f", s.symmetric.low) + ", " +
-             Format("%.5f", s.symmetric.high) + "]";
+      out += ", " + pct + " % [" + FormatPrintf("%.5f", s.symmetric.low) + ", " +
+             FormatPrintf("%.5f", s.symmetric.high) + "]";
     }
     out += "\n";
   }
   const SampleSummary& s = scale_factor;
-  out += "Scale factor s: mean " + Format("%.7f", s.mean) + " (bias " +
-         Format("%+.1f", (s.mean - 1.0) * 1e6) + " ppm), std MC " + Format("%.1f", s.std_dev * 1e6) +
-         " ppm FO " + Format("%.1f", s.first_order_std * 1e6) + " ppm";
+  out += "Scale factor s: mean " + FormatPrintf("%.7f", s.mean) + " (bias " +
+         FormatPrintf("%+.1f", (s.mean - 1.0) * 1e6) + " ppm), std MC " + FormatPrintf("%.1f", s.std_dev * 1e6) +
+         " ppm FO " + FormatPrintf("%.1f", s.first_order_std * 1e6) + " ppm";
   if (s.has_interval) {
-    out += ", " + pct + " % [" + Format("%.7f", s.symmetric.low) + ", " +
-           Format("%.7f", s.symmetric.high) + "]";
+    out += ", " + pct + " % [" + FormatPrintf("%.7f", s.symmetric.low) + ", " +
+           FormatPrintf("%.7f", s.symmetric.high) + "]";
   }
   out += "\n";
   out += "Sources (std MC / FO; origin in mm, rotation angles R = Rx Ry Rz in urad):\n";

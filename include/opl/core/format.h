@@ -12,4 +12,7 @@ inline constexpr double kPi = 3.14159265358979323846;
 // 10 read well in messages.
 std::string FormatNumber(double value, int significant_digits = 10);
 
+// printf(fmt, value) for one double, e.g. FormatPrintf("%.4f", x), for reports.
+std::string FormatPrintf(const char* fmt, double value);
+
 }  // namespace opl

@@ -46,6 +46,7 @@ struct Args {
   int iterations = 0;
   int threads = 0;
   bool json = false;
+  std::string weighting = "efficient";
 };
 
 // What `spots` and `slices` share before simulating: checks --noise-scale,
@@ -185,6 +186,11 @@ int MonteCarloCommand(const Args& args) {
   options.iterations = args.iterations;
   options.seed = args.spots.seed;
   options.threads = args.threads;
+  Result<SpotWeighting> weighting = ParseSpotWeighting(args.weighting);
+  if (!weighting.ok()) {
+    return cli::Fail(kTool, "--weighting: " + weighting.status().message(), cli::kExitUsage);
+  }
+  options.weighting = *weighting;
   if (Status st = options.Validate(); !st.ok()) {
     return cli::Fail(kTool, "invalid option: --" + st.message(), cli::kExitBadInput);
   }
@@ -332,7 +338,9 @@ int Run(int argc, char** argv) {
       "  - per source: mean and standard deviation of the origin (x, y, z) and of the\n"
       "    pose angles (R = Rx Ry Rz);\n"
       "each next to the first-order prediction (the covariance the locate and scale\n"
-      "solves report for the noise-free spots carrying the design's noise). Coverage\n"
+      "solves report for the noise-free spots carrying the design's noise) and the\n"
+      "Cramer-Rao bound (the least covariance any unbiased estimator can reach for that\n"
+      "noise, docs/uncertainty.md), with the ratios MC/FO and MC/CRB. Coverage\n"
       "intervals are the probabilistically symmetric ones of JCGM 101 7.7.1 (the\n"
       "shortest, 7.7.2, is also in the JSON). Use at least a few thousand iterations\n"
       "for a stable 95 % interval.\n"
@@ -358,6 +366,12 @@ int Run(int argc, char** argv) {
   mc->add_option("--noise-scale", args.noise_scale,
                  "Multiplies the design's spot noise (spot_noise_mm), > 0")
       ->capture_default_str();
+  mc->add_option("--weighting", args.weighting,
+                 "How each locate weights its spots: 'efficient' (each spot's covariance carried\n"
+                 "into its angular residuals, as opl_measure does with sx, sy, sz) or 'unweighted'\n"
+                 "(plain angular residuals, as for spots without sigmas)")
+      ->capture_default_str()
+      ->type_name("W");
   mc->add_flag("--json", args.json,
                "Write one JSON object (format opl.monte_carlo_report, docs/uncertainty.md)\n"
                "instead of the text summary");

@@ -28,6 +28,8 @@ std::string Triple(const char* fmt, const Eigen::Vector3d& v) {
   return "(" + FormatPrintf(fmt, v.x()) + ", " + FormatPrintf(fmt, v.y()) + ", " + FormatPrintf(fmt, v.z()) + ")";
 }
 
+double Ratio(double a, double b) { return b > 0.0 ? a / b : 0.0; }
+
 double WrapAngle(double a) {
   a = std::remainder(a, 2.0 * kPi);  // [-pi, pi]
   return a <= -kPi ? a + 2.0 * kPi : a;
@@ -214,7 +216,7 @@ Result<MonteCarloReport> RunMeasurementMonteCarlo(const ModuleDesign& design,
       SpotObservation o;
       o.beam_id = spot.spot.observation.beam_id;
       o.point_in_scene = spot.true_point_in_scene;
-      o.cov_in_scene = sigma;
+      if (options.weighting == SpotWeighting::kEfficient) o.cov_in_scene = sigma;
       s.truth.push_back(o);
     }
     if (s.truth.empty()) {
@@ -229,6 +231,7 @@ Result<MonteCarloReport> RunMeasurementMonteCarlo(const ModuleDesign& design,
   report.seed = options.seed;
   report.coverage_probability = options.coverage_probability;
   report.spot_noise_mm = design.spot_noise_mm;
+  report.weighting = options.weighting;
 
   // First order: the noise-free spots with Sigma attached.
   Problem problem;
@@ -239,6 +242,7 @@ Result<MonteCarloReport> RunMeasurementMonteCarlo(const ModuleDesign& design,
   problem.seed = options.seed;
   problem.noise_factor = design.noise_frame_rotation * design.spot_noise_mm.asDiagonal();
   std::vector<LocatedOrigin> located;
+  std::vector<LocatedOrigin> bound;
   for (const SourceSetup& s : sources) {
     LocateOptions locate = options.locate;
     locate.initial_scene_from_source = s.pose;
@@ -247,18 +251,43 @@ Result<MonteCarloReport> RunMeasurementMonteCarlo(const ModuleDesign& design,
       return Status::NoSolution("source '" + s.name + "', noise-free spots: " +
                                 r.status().message());
     }
+    SourceSpotGeometry geometry;
+    geometry.scene_from_source = s.pose;
+    for (const SpotObservation& spot : s.truth) {
+      geometry.points_in_scene.push_back(spot.point_in_scene);
+      geometry.covariances.push_back(sigma);
+    }
+    Result<Eigen::Matrix<double, 6, 6>> crb = PoseCramerRaoBound(geometry);
+    if (!crb.ok()) return Status::NoSolution("source '" + s.name + "': " + crb.status().message());
+    Eigen::Matrix<double, 6, 6> first_order = r->covariance;
+    if (options.weighting == SpotWeighting::kUnweighted) {
+      Result<Eigen::Matrix<double, 6, 6>> sandwich =
+          PoseFirstOrderCovariance(geometry, SpotWeighting::kUnweighted);
+      if (!sandwich.ok()) {
+        return Status::NoSolution("source '" + s.name + "': " + sandwich.status().message());
+      }
+      first_order = *sandwich;
+    }
+    const Eigen::Matrix3d angles_jacobian = XyzAnglesJacobianWrtLeftPerturbation(s.angles);
     MonteCarloSource m;
     m.name = s.name;
     m.spots = static_cast<int>(s.truth.size());
     m.true_origin_mm = s.pose.translation;
     m.true_rotation_xyz_rad = s.angles;
-    m.origin_first_order_std_mm = StdDevs(r->origin_covariance);
-    m.rotation_first_order_std_rad = StdDevs(r->rotation_xyz_covariance);
+    m.origin_first_order_std_mm = StdDevs(first_order.bottomRightCorner<3, 3>());
+    m.rotation_first_order_std_rad = StdDevs(
+        angles_jacobian * first_order.topLeftCorner<3, 3>() * angles_jacobian.transpose());
+    m.origin_cramer_rao_std_mm = StdDevs(crb->bottomRightCorner<3, 3>());
+    m.rotation_cramer_rao_std_rad =
+        StdDevs(angles_jacobian * crb->topLeftCorner<3, 3>() * angles_jacobian.transpose());
     report.sources.push_back(m);
-    located.push_back({s.name, r->scene_from_source.translation, r->origin_covariance});
+    located.push_back({s.name, s.pose.translation, first_order.bottomRightCorner<3, 3>()});
+    bound.push_back({s.name, s.pose.translation, crb->bottomRightCorner<3, 3>()});
   }
   Result<ScaleResult> first_order = ComputeScaleFactor(*calibration, located);
   if (!first_order.ok()) return first_order.status();
+  Result<ScaleResult> cramer_rao = ComputeScaleFactor(*calibration, bound);
+  if (!cramer_rao.ok()) return cramer_rao.status();
   for (const Separation& sep : calibration->separations) {
     MonteCarloLength l;
     l.from = sep.from;
@@ -266,6 +295,9 @@ Result<MonteCarloReport> RunMeasurementMonteCarlo(const ModuleDesign& design,
     l.true_mm = sep.length_mm;
     for (const LengthScale& ls : first_order->lengths) {
       if (ls.from == sep.from && ls.to == sep.to) l.photo_mm.first_order_std = ls.u_photo;
+    }
+    for (const LengthScale& ls : cramer_rao->lengths) {
+      if (ls.from == sep.from && ls.to == sep.to) l.photo_mm.cramer_rao_std = ls.u_photo;
     }
     report.lengths.push_back(l);
     problem.pairs.emplace_back(sep.from, sep.to);
@@ -353,11 +385,14 @@ Result<MonteCarloReport> RunMeasurementMonteCarlo(const ModuleDesign& design,
   }
   for (MonteCarloLength& l : report.lengths) {
     const double first = l.photo_mm.first_order_std;
+    const double crb = l.photo_mm.cramer_rao_std;
     l.photo_mm = Summarize(l.samples_mm, p);
     l.photo_mm.first_order_std = first;
+    l.photo_mm.cramer_rao_std = crb;
   }
   report.scale_factor = Summarize(report.scale_samples, p);
   report.scale_factor.first_order_std = first_order->u_scale_factor;
+  report.scale_factor.cramer_rao_std = cramer_rao->u_scale_factor;
   return report;
 }
 
@@ -365,18 +400,22 @@ std::string MonteCarloReport::ToText() const {
   std::string out;
   out += "Monte Carlo (JCGM 101): " + std::to_string(iterations) + " iterations, " +
          std::to_string(succeeded) + " located, " + std::to_string(failed) + " failed; seed " +
-         std::to_string(seed) + "; spot noise " + Triple("%.4g", spot_noise_mm) + " mm\n";
+         std::to_string(seed) + "; spot noise " + Triple("%.4g", spot_noise_mm) + " mm; " +
+         SpotWeightingName(weighting) + " weighting\n";
   if (failed > 0) out += "  first failure: " + first_failure + "\n";
   const std::string pct = FormatPrintf("%g", coverage_probability * 100.0);
   out += pct + " % coverage intervals: probabilistically symmetric (JCGM 101 7.7.1);"
                " shortest (7.7.2) in the JSON\n";
-  out += "Lengths L_photo between origins (mm, design frame; MC = Monte Carlo, FO = first order):\n";
+  out += "Lengths L_photo between origins (mm, design frame; MC = Monte Carlo, FO = first order,"
+         " CRB = Cramer-Rao bound):\n";
   for (const MonteCarloLength& l : lengths) {
     const SampleSummary& s = l.photo_mm;
     out += "  " + l.from + "-" + l.to + ": true " + FormatPrintf("%.4f", l.true_mm) + ", mean " +
            FormatPrintf("%.5f", s.mean) + ", std MC " + FormatPrintf("%.5f", s.std_dev) + " FO " +
            FormatPrintf("%.5f", s.first_order_std) + " (MC/FO " +
-           FormatPrintf("%.3f", s.first_order_std > 0 ? s.std_dev / s.first_order_std : 0.0) + ")";
+           FormatPrintf("%.3f", Ratio(s.std_dev, s.first_order_std)) + ") CRB " +
+           FormatPrintf("%.5f", s.cramer_rao_std) + " (MC/CRB " +
+           FormatPrintf("%.3f", Ratio(s.std_dev, s.cramer_rao_std)) + ")";
     if (s.has_interval) {
       out += ", " + pct + " % [" + FormatPrintf("%.5f", s.symmetric.low) + ", " +
              FormatPrintf("%.5f", s.symmetric.high) + "]";
@@ -386,20 +425,23 @@ std::string MonteCarloReport::ToText() const {
   const SampleSummary& s = scale_factor;
   out += "Scale factor s: mean " + FormatPrintf("%.7f", s.mean) + " (bias " +
          FormatPrintf("%+.1f", (s.mean - 1.0) * 1e6) + " ppm), std MC " + FormatPrintf("%.1f", s.std_dev * 1e6) +
-         " ppm FO " + FormatPrintf("%.1f", s.first_order_std * 1e6) + " ppm";
+         " ppm FO " + FormatPrintf("%.1f", s.first_order_std * 1e6) + " ppm CRB " +
+         FormatPrintf("%.1f", s.cramer_rao_std * 1e6) + " ppm";
   if (s.has_interval) {
     out += ", " + pct + " % [" + FormatPrintf("%.7f", s.symmetric.low) + ", " +
            FormatPrintf("%.7f", s.symmetric.high) + "]";
   }
   out += "\n";
-  out += "Sources (std MC / FO; origin in mm, rotation angles R = Rx Ry Rz in urad):\n";
+  out += "Sources (std MC / FO / CRB; origin in mm, rotation angles R = Rx Ry Rz in urad):\n";
   for (const MonteCarloSource& src : sources) {
     out += "  " + src.name + " (" + std::to_string(src.spots) + " spots): origin mean " +
            Triple("%.4f", src.origin_mean_mm) + "\n";
     out += "    origin std   MC " + Triple("%.5f", src.origin_std_mm) + "  FO " +
-           Triple("%.5f", src.origin_first_order_std_mm) + "\n";
+           Triple("%.5f", src.origin_first_order_std_mm) + "  CRB " +
+           Triple("%.5f", src.origin_cramer_rao_std_mm) + "\n";
     out += "    rotation std MC " + Triple("%.2f", src.rotation_std_rad * 1e6) + "  FO " +
-           Triple("%.2f", src.rotation_first_order_std_rad * 1e6) + "\n";
+           Triple("%.2f", src.rotation_first_order_std_rad * 1e6) + "  CRB " +
+           Triple("%.2f", src.rotation_cramer_rao_std_rad * 1e6) + "\n";
   }
   return out;
 }
@@ -416,6 +458,7 @@ std::string MonteCarloReport::ToJson() const {
   doc["seed"] = seed;
   doc["coverage_probability"] = coverage_probability;
   doc["coverage_interval"] = "probabilistically_symmetric";
+  doc["weighting"] = SpotWeightingName(weighting);
   doc["spot_noise_mm"] = VectorJson(spot_noise_mm);
   ordered_json length_array = ordered_json::array();
   for (const MonteCarloLength& l : lengths) {
@@ -428,6 +471,8 @@ std::string MonteCarloReport::ToJson() const {
     j["ci95_mm"] = IntervalJson(l.photo_mm, l.photo_mm.symmetric);
     j["shortest_ci95_mm"] = IntervalJson(l.photo_mm, l.photo_mm.shortest);
     j["first_order_std_mm"] = l.photo_mm.first_order_std;
+    j["cramer_rao_std_mm"] = l.photo_mm.cramer_rao_std;
+    j["std_over_cramer_rao"] = Ratio(l.photo_mm.std_dev, l.photo_mm.cramer_rao_std);
     length_array.push_back(j);
   }
   doc["lengths"] = length_array;
@@ -440,10 +485,12 @@ std::string MonteCarloReport::ToJson() const {
     j["origin_mean_mm"] = VectorJson(s.origin_mean_mm);
     j["origin_std_mm"] = VectorJson(s.origin_std_mm);
     j["origin_first_order_std_mm"] = VectorJson(s.origin_first_order_std_mm);
+    j["origin_cramer_rao_std_mm"] = VectorJson(s.origin_cramer_rao_std_mm);
     j["true_rotation_rad"] = VectorJson(s.true_rotation_xyz_rad);
     j["rotation_mean_rad"] = VectorJson(s.rotation_mean_rad);
     j["rotation_std_rad"] = VectorJson(s.rotation_std_rad);
     j["rotation_first_order_std_rad"] = VectorJson(s.rotation_first_order_std_rad);
+    j["rotation_cramer_rao_std_rad"] = VectorJson(s.rotation_cramer_rao_std_rad);
     source_array.push_back(j);
   }
   doc["sources"] = source_array;
@@ -453,6 +500,8 @@ std::string MonteCarloReport::ToJson() const {
   scale["ci95"] = IntervalJson(scale_factor, scale_factor.symmetric);
   scale["shortest_ci95"] = IntervalJson(scale_factor, scale_factor.shortest);
   scale["first_order_std"] = scale_factor.first_order_std;
+  scale["cramer_rao_std"] = scale_factor.cramer_rao_std;
+  scale["std_over_cramer_rao"] = Ratio(scale_factor.std_dev, scale_factor.cramer_rao_std);
   doc["scale_factor"] = scale;
   return doc.dump(2) + "\n";
 }

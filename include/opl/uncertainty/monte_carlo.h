@@ -14,7 +14,11 @@
 // denominator), and for every L and s the 95 % coverage intervals of JCGM 101
 // 7.7 (probabilistically symmetric and shortest, coverage_interval.h), next
 // to the first-order prediction: the covariances LocateSource and
-// ComputeScaleFactor report for the noise-free spots carrying Sigma.
+// ComputeScaleFactor report for the noise-free spots carrying Sigma (with
+// the unweighted locate, whose own covariance is scaled by the residuals,
+// the sandwich covariance of PoseFirstOrderCovariance instead), and to the
+// Cramer-Rao bound of the design (cramer_rao.h): std / bound is 1 for an
+// efficient estimator.
 //
 // Determinism: iteration i draws its noise from std::mt19937_64 seeded with
 // IterationSeed(seed, i) (the (i+1)-th output of SplitMix64(seed)); its
@@ -37,6 +41,7 @@
 #include "opl/locate/locate_source.h"
 #include "opl/sim/module_design.h"
 #include "opl/uncertainty/coverage_interval.h"
+#include "opl/uncertainty/cramer_rao.h"
 
 namespace opl {
 
@@ -57,6 +62,11 @@ struct MonteCarloOptions {
   // from the iteration's seed).
   LocateOptions locate;
   bool start_from_design_pose = true;
+  // How every locate weights its spots (cramer_rao.h): kEfficient gives each
+  // spot its covariance Sigma (the angular residuals whitened by F Sigma F^T);
+  // kUnweighted gives none (plain angular residuals, as for spots without
+  // sx, sy, sz).
+  SpotWeighting weighting = SpotWeighting::kEfficient;
   // Called on the calling thread, about every progress_interval_s and once at
   // the end, with the number of iterations done (successful or not) and M.
   std::function<void(int done, int total)> progress;
@@ -74,6 +84,7 @@ struct SampleSummary {
   CoverageInterval shortest;         // JCGM 101 7.7.2 (zero when M is too small)
   bool has_interval = false;         // false when M - q < 1
   double first_order_std = 0.0;      // the first-order prediction
+  double cramer_rao_std = 0.0;       // the Cramer-Rao bound (cramer_rao.h); 0 when not computed
 };
 
 struct MonteCarloSource {
@@ -86,6 +97,8 @@ struct MonteCarloSource {
   Eigen::Vector3d rotation_mean_rad = Eigen::Vector3d::Zero();
   Eigen::Vector3d rotation_std_rad = Eigen::Vector3d::Zero();
   Eigen::Vector3d rotation_first_order_std_rad = Eigen::Vector3d::Zero();
+  Eigen::Vector3d origin_cramer_rao_std_mm = Eigen::Vector3d::Zero();
+  Eigen::Vector3d rotation_cramer_rao_std_rad = Eigen::Vector3d::Zero();
   int spots = 0;  // spots of this source on the surface
 };
 
@@ -104,6 +117,7 @@ struct MonteCarloReport {
   uint64_t seed = 0;
   int threads = 0;  // worker threads used (does not change the results)
   double coverage_probability = 0.95;
+  SpotWeighting weighting = SpotWeighting::kEfficient;
   Eigen::Vector3d spot_noise_mm = Eigen::Vector3d::Zero();
   std::vector<MonteCarloSource> sources;  // design order
   std::vector<MonteCarloLength> lengths;  // every pair (i < j), design order

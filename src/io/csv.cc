@@ -11,19 +11,164 @@ namespace {
 
 bool IsBlank(char c) { return c == ' ' || c == '\t'; }
 
-std::string Trim(const std::string& s) {
-  size_t b = 0, e = s.size();
-  while (b < e && IsBlank(s[b])) ++b;
-  while (e > b && IsBlank(s[e - 1])) --e;
-  return s.substr(b, e - b);
-}
+// Splits one text into records per SplitOptions.
+class Splitter {
+ public:
+  Splitter(const std::string& text, const std::string& name, const SplitOptions& options)
+      : text_(text), name_(name), delimiter_(options.delimiter),
+        whitespace_(options.delimiter == ' '), comment_(options.comment),
+        skip_lines_(options.skip_lines) {}
+
+  Result<std::vector<CsvRecord>> Run() {
+    std::vector<CsvRecord> records;
+    pos_ = SkipBom(text_);
+    while (pos_ < n_ && line_ <= skip_lines_) SkipRestOfLine();
+    while (pos_ < n_) {
+      // Skip blank and comment lines.
+      size_t probe = pos_;
+      while (probe < n_ && (IsBlank(text_[probe]) || text_[probe] == '\r')) ++probe;
+      if (probe >= n_) break;
+      if (text_[probe] == '\n' || (comment_ != '\0' && text_[probe] == comment_)) {
+        pos_ = probe;
+        SkipRestOfLine();
+        continue;
+      }
+      if (whitespace_) pos_ = probe;  // leading blanks are not an empty field
+      Result<CsvRecord> record = Record();
+      if (!record.ok()) return record.status();
+      records.push_back(std::move(*record));
+    }
+    return records;
+  }
+
+ private:
+  // Blank, and not the delimiter (a tab delimiter is not trimmed away).
+  bool Trimmable(char c) const { return IsBlank(c) && (whitespace_ || c != delimiter_); }
+  // At pos: a line break ("\n", or "\r" then "\n" or the end).
+  bool AtLineEnd(size_t i) const {
+    if (i >= n_) return false;
+    return text_[i] == '\n' || (text_[i] == '\r' && (i + 1 >= n_ || text_[i + 1] == '\n'));
+  }
+  bool EndsUnquotedField(size_t i) const {
+    const char c = text_[i];
+    if (c == '\n') return true;
+    if (whitespace_) return IsBlank(c) || c == '\r';
+    return c == delimiter_;
+  }
+  void SkipRestOfLine() {
+    while (pos_ < n_ && text_[pos_] != '\n') ++pos_;
+    if (pos_ < n_) ++pos_;
+    ++line_;
+  }
+  Status Error(int line, const std::string& what) const {
+    return Status::ParseError(name_ + ":" + std::to_string(line) + ": " + what);
+  }
+
+  Result<CsvRecord> Record() {
+    CsvRecord record;
+    record.line = line_;
+    while (true) {
+      // One field starting at pos_.
+      size_t start = pos_;
+      while (start < n_ && Trimmable(text_[start])) ++start;
+      std::string value;
+      const size_t raw_begin = pos_;
+      size_t raw_end;
+      if (start < n_ && text_[start] == '"') {
+        const int quote_line = line_;
+        size_t i = start + 1;
+        bool closed = false;
+        while (i < n_) {
+          if (text_[i] == '"') {
+            if (i + 1 < n_ && text_[i + 1] == '"') {
+              value += '"';
+              i += 2;
+              continue;
+            }
+            closed = true;
+            ++i;
+            break;
+          }
+          if (text_[i] == '\n') ++line_;
+          value += text_[i++];
+        }
+        if (!closed) return Error(quote_line, "unterminated quoted field");
+        // After the closing quote: blanks, then the delimiter or the line end
+        // (with whitespace as the delimiter, a blank or the line end).
+        if (!whitespace_) {
+          while (i < n_ && Trimmable(text_[i])) ++i;
+        }
+        const bool separator = i < n_ && (whitespace_ ? IsBlank(text_[i]) : text_[i] == delimiter_);
+        if (i < n_ && !AtLineEnd(i) && !separator) {
+          return Error(line_, "unexpected text after a closing quote");
+        }
+        raw_end = i;
+        pos_ = i;
+      } else {
+        size_t i = start;
+        while (i < n_ && !EndsUnquotedField(i)) {
+          if (text_[i] == '"') {
+            return Error(line_, "quote inside an unquoted field (quote the whole field)");
+          }
+          ++i;
+        }
+        raw_end = i;
+        if (raw_end > raw_begin && text_[raw_end - 1] == '\r' && (i >= n_ || text_[i] == '\n')) {
+          --raw_end;  // CRLF
+        }
+        value = text_.substr(raw_begin, raw_end - raw_begin);
+        size_t b = 0, e = value.size();
+        while (b < e && Trimmable(value[b])) ++b;
+        while (e > b && Trimmable(value[e - 1])) --e;
+        value = value.substr(b, e - b);
+        pos_ = i;
+      }
+      record.fields.push_back(std::move(value));
+      record.raw.push_back(text_.substr(raw_begin, raw_end - raw_begin));
+      if (whitespace_) {
+        // A run of blanks (and a CR before the line break) ends the field.
+        while (pos_ < n_ && (IsBlank(text_[pos_]) || (text_[pos_] == '\r' && !AtLineEnd(pos_)))) {
+          ++pos_;
+        }
+        if (pos_ < n_ && text_[pos_] == '\r') ++pos_;
+        if (pos_ >= n_) return record;
+        if (text_[pos_] == '\n') {
+          ++pos_;
+          ++line_;
+          return record;
+        }
+        continue;  // the next field starts here
+      }
+      if (pos_ < n_ && text_[pos_] == '\r') ++pos_;  // CR of CRLF after a quoted field
+      if (pos_ >= n_) return record;
+      if (text_[pos_] == delimiter_) {
+        ++pos_;
+      } else {  // '\n'
+        ++pos_;
+        ++line_;
+        return record;
+      }
+    }
+  }
+
+  const std::string& text_;
+  const std::string& name_;
+  const size_t n_ = text_.size();
+  const char delimiter_;
+  const bool whitespace_;
+  const char comment_;
+  const int skip_lines_;
+  size_t pos_ = 0;
+  int line_ = 1;
+};
+
+}  // namespace
 
 std::string Lower(std::string s) {
   for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   return s;
 }
 
-// Shows a value in a message: at most 40 characters, control characters escaped.
 std::string Shown(const std::string& s) {
   std::string out;
   for (char c : s.substr(0, 40)) {
@@ -35,7 +180,14 @@ std::string Shown(const std::string& s) {
   return "'" + out + "'";
 }
 
-}  // namespace
+size_t SkipBom(const std::string& text) {
+  return text.compare(0, 3, "\xEF\xBB\xBF") == 0 ? 3 : 0;
+}
+
+Result<std::vector<CsvRecord>> SplitRecords(const std::string& text, const std::string& name,
+                                            const SplitOptions& options) {
+  return Splitter(text, name, options).Run();
+}
 
 int CsvTable::FindColumn(const std::string& name) const {
   const std::string wanted = Lower(name);
@@ -46,93 +198,9 @@ int CsvTable::FindColumn(const std::string& name) const {
 }
 
 Result<CsvTable> ParseCsv(const std::string& text, const std::string& name) {
-  std::vector<CsvRecord> records;
-  size_t pos = 0;
-  const size_t n = text.size();
-  if (text.compare(0, 3, "\xEF\xBB\xBF") == 0) pos = 3;
-  int line = 1;
-  while (pos < n) {
-    // Skip blank lines.
-    size_t probe = pos;
-    while (probe < n && (IsBlank(text[probe]) || text[probe] == '\r')) ++probe;
-    if (probe >= n) break;
-    if (text[probe] == '\n') {
-      pos = probe + 1;
-      ++line;
-      continue;
-    }
-    CsvRecord record;
-    record.line = line;
-    bool end_of_record = false;
-    while (!end_of_record) {
-      // One field starting at pos.
-      size_t start = pos;
-      while (start < n && IsBlank(text[start])) ++start;
-      std::string value;
-      size_t raw_begin = pos, raw_end;
-      if (start < n && text[start] == '"') {
-        const int quote_line = line;
-        size_t i = start + 1;
-        bool closed = false;
-        while (i < n) {
-          if (text[i] == '"') {
-            if (i + 1 < n && text[i + 1] == '"') {
-              value += '"';
-              i += 2;
-              continue;
-            }
-            closed = true;
-            ++i;
-            break;
-          }
-          if (text[i] == '\n') ++line;
-          value += text[i++];
-        }
-        if (!closed) {
-          return Status::ParseError(name + ":" + std::to_string(quote_line) +
-                                    ": unterminated quoted field");
-        }
-        while (i < n && IsBlank(text[i])) ++i;
-        if (i < n && text[i] != ',' && text[i] != '\n' &&
-            !(text[i] == '\r' && (i + 1 >= n || text[i + 1] == '\n'))) {
-          return Status::ParseError(name + ":" + std::to_string(line) +
-                                    ": unexpected text after a closing quote");
-        }
-        raw_end = i;
-        pos = i;
-      } else {
-        size_t i = start;
-        while (i < n && text[i] != ',' && text[i] != '\n') {
-          if (text[i] == '"') {
-            return Status::ParseError(name + ":" + std::to_string(line) +
-                                      ": quote inside an unquoted field (quote the whole field)");
-          }
-          ++i;
-        }
-        raw_end = i;
-        if (raw_end > raw_begin && text[raw_end - 1] == '\r' && (i >= n || text[i] == '\n')) {
-          --raw_end;  // CRLF
-        }
-        value = Trim(text.substr(raw_begin, raw_end - raw_begin));
-        pos = i;
-      }
-      std::string raw = text.substr(raw_begin, raw_end - raw_begin);
-      record.fields.push_back(std::move(value));
-      record.raw.push_back(std::move(raw));
-      if (pos < n && text[pos] == '\r') ++pos;  // CR of CRLF after a quoted field
-      if (pos >= n) {
-        end_of_record = true;
-      } else if (text[pos] == ',') {
-        ++pos;
-      } else {  // '\n'
-        ++pos;
-        ++line;
-        end_of_record = true;
-      }
-    }
-    records.push_back(std::move(record));
-  }
-
+  Result<std::vector<CsvRecord>> split = SplitRecords(text, name, SplitOptions());
+  if (!split.ok()) return split.status();
+  std::vector<CsvRecord>& records = *split;
   if (records.empty()) return Status::ParseError(name + ": empty file (no header row)");
   CsvTable table;
   table.header = std::move(records.front());
@@ -188,7 +256,16 @@ Result<double> ParseFiniteDouble(const std::string& text, const std::string& con
     return Status::ParseError(context + "out of range: " + Shown(text));
   }
   if (r.ec != std::errc() || r.ptr != end) {
-    return Status::ParseError(context + "not a number: " + Shown(text));
+    std::string hint;
+    const size_t comma = text.find(',');
+    if (comma != std::string::npos && text.find(',', comma + 1) == std::string::npos) {
+      std::string dotted = text;
+      dotted[comma] = '.';
+      if (ParseFiniteDouble(dotted, std::string()).ok()) {
+        hint = " (decimal commas are not supported)";
+      }
+    }
+    return Status::ParseError(context + "not a number: " + Shown(text) + hint);
   }
   if (!std::isfinite(value)) return Status::ParseError(context + "not finite: " + Shown(text));
   return value;

@@ -115,21 +115,122 @@ TEST(SpotsCsv, SigmasAllThreeOrNoneAndPositive) {
 TEST(SpotsCsv, HeaderProblems) {
   EXPECT_EQ(ParseError("").message(), "s.csv: empty file (no header row)");
   EXPECT_EQ(ParseError("\n  \n").message(), "s.csv: empty file (no header row)");
-  EXPECT_EQ(ParseError("source,x,y,z\nA,1,2,3\n").message(),
-            "s.csv:1: missing column 'beam' (a spots CSV needs source,beam,x,y,z)");
+  EXPECT_EQ(ParseError("source,beam,x,y\nA,1,2,3\n").message(),
+            "s.csv:1: missing column 'z' (a spots CSV needs x,y,z; source,beam are optional)");
+  EXPECT_EQ(ParseError("source,beam,y,z\nA,1,2,3\n").message(),
+            "s.csv:1: missing column 'x' (a spots CSV needs x,y,z; source,beam are optional)");
   EXPECT_EQ(ParseError("source,beam,x,y,z,X\n").message(), "s.csv:1: duplicate column 'X'");
   EXPECT_EQ(ParseError("source,beam,,x,y,z\n").message(), "s.csv:1: header column 3 has no name");
 }
 
-TEST(SpotsCsv, EmptySourceOrBeamAndBadIds) {
-  EXPECT_EQ(ParseError("source,beam,x,y,z\n,1,1,2,3\n").message(),
-            "s.csv:2: field 'source': empty source name");
-  EXPECT_EQ(ParseError("source,beam,x,y,z\nA,,1,2,3\n").message(),
-            "s.csv:2: field 'beam': empty beam id");
+TEST(SpotsCsv, EmptySourceOrBeamMeansUnassigned) {
+  const std::string text =
+      "source,beam,x,y,z\n"
+      "A,61,1,2,3\n"
+      ",,4,5,6\n"
+      "B,,7,8,9\n"
+      "\"\",12,10,11,12\n"
+      " , ,13,14,15\n";  // blanks only: empty after trimming
+  Result<SpotsCsvData> r = ParseSpotsCsv(text, "s.csv");
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  ASSERT_EQ(r->spots.size(), 5u);
+  EXPECT_TRUE(r->spots[0].assigned());
+  EXPECT_EQ(r->spots[1].source, "");
+  EXPECT_EQ(r->spots[1].observation.beam_id, 0);
+  EXPECT_EQ(r->spots[1].observation.point_in_scene, Eigen::Vector3d(4, 5, 6));
+  EXPECT_EQ(r->spots[1].where, "s.csv:3");
+  EXPECT_FALSE(r->spots[1].assigned());
+  // One of the two is kept as a hint, but the spot is not assigned.
+  EXPECT_EQ(r->spots[2].source, "B");
+  EXPECT_EQ(r->spots[2].observation.beam_id, 0);
+  EXPECT_FALSE(r->spots[2].assigned());
+  EXPECT_EQ(r->spots[3].source, "");
+  EXPECT_EQ(r->spots[3].observation.beam_id, 12);
+  EXPECT_FALSE(r->spots[3].assigned());
+  EXPECT_FALSE(r->spots[4].assigned());
+  EXPECT_EQ(r->num_unassigned(), 4);
+  EXPECT_TRUE(r->point_ids.empty());
+}
+
+TEST(SpotsCsv, SourceAndBeamColumnsMayBeAbsent) {
+  Result<SpotsCsvData> r = ParseSpotsCsv("x,y,z,note\n1,2,3,a\n4,5,6,b\n", "s.csv");
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  ASSERT_EQ(r->spots.size(), 2u);
+  EXPECT_EQ(r->num_unassigned(), 2);
+  EXPECT_EQ(r->spots[1].source, "");
+  EXPECT_EQ(r->spots[1].observation.beam_id, 0);
+  EXPECT_EQ(r->spots[1].observation.point_in_scene, Eigen::Vector3d(4, 5, 6));
+  EXPECT_EQ(r->other_columns, (std::vector<std::string>{"note"}));
+
+  Result<SpotsCsvData> beams_only = ParseSpotsCsv("beam,x,y,z\n7,1,2,3\n", "s.csv");
+  ASSERT_TRUE(beams_only.ok()) << beams_only.status().ToString();
+  EXPECT_EQ(beams_only->spots[0].observation.beam_id, 7);
+  EXPECT_EQ(beams_only->spots[0].source, "");
+  EXPECT_EQ(beams_only->num_unassigned(), 1);
+
+  Result<SpotsCsvData> sources_only = ParseSpotsCsv("source,x,y,z\nA,1,2,3\n", "s.csv");
+  ASSERT_TRUE(sources_only.ok()) << sources_only.status().ToString();
+  EXPECT_EQ(sources_only->spots[0].source, "A");
+  EXPECT_EQ(sources_only->spots[0].observation.beam_id, 0);
+  EXPECT_EQ(sources_only->num_unassigned(), 1);
+
+  Result<SpotsCsvData> none = ParseSpotsCsv("source,beam,x,y,z\nA,1,1,2,3\n", "s.csv");
+  ASSERT_TRUE(none.ok());
+  EXPECT_EQ(none->num_unassigned(), 0);
+}
+
+TEST(SpotsCsv, APresentBeamMustStillBeAnIdAndSliceNonNegative) {
   EXPECT_EQ(ParseError("source,beam,x,y,z\nA,0,1,2,3\n").message(),
             "s.csv:2: field 'beam': beam id must be >= 1, got 0");
+  EXPECT_EQ(ParseError("source,beam,x,y,z\n,-3,1,2,3\n").message(),
+            "s.csv:2: field 'beam': beam id must be >= 1, got -3");
+  EXPECT_EQ(ParseError("source,beam,x,y,z\n,x1,1,2,3\n").message(),
+            "s.csv:2: field 'beam': not an integer: 'x1'");
   EXPECT_EQ(ParseError("source,beam,x,y,z,slice\nA,1,1,2,3,-1\n").message(),
             "s.csv:2: field 'slice': slice must be >= 0, got -1");
+}
+
+TEST(SpotsCsv, DecimalCommaInAQuotedFieldSaysSo) {
+  EXPECT_EQ(ParseError("source,beam,x,y,z\nA,1,\"12,5\",2,3\n").message(),
+            "s.csv:2: field 'x': not a number: '12,5' (decimal commas are not supported)");
+  EXPECT_EQ(ParseError("source,beam,x,y,z\nA,1,\"1,2,5\",2,3\n").message(),
+            "s.csv:2: field 'x': not a number: '1,2,5'");
+}
+
+TEST(SpotsCsv, UnassignedSpotsRoundTrip) {
+  std::vector<Spot> spots(3);
+  spots[0].source = "A";
+  spots[0].observation.beam_id = 5;
+  spots[1].observation.point_in_scene = Eigen::Vector3d(0.1, -2, 3e-7);
+  spots[2].source = "B";  // source known, beam not
+  Result<std::string> text = FormatSpotsCsv(spots);
+  ASSERT_TRUE(text.ok()) << text.status().ToString();
+  EXPECT_EQ(*text, "source,beam,x,y,z\nA,5,0,0,0\n\"\",,0.1,-2,3e-07\nB,,0,0,0\n");
+  Result<SpotsCsvData> back = ParseSpotsCsv(*text, "t.csv");
+  ASSERT_TRUE(back.ok()) << back.status().ToString();
+  ASSERT_EQ(back->spots.size(), 3u);
+  for (size_t i = 0; i < spots.size(); ++i) {
+    EXPECT_EQ(back->spots[i].source, spots[i].source);
+    EXPECT_EQ(back->spots[i].observation.beam_id, spots[i].observation.beam_id);
+    EXPECT_EQ(back->spots[i].observation.point_in_scene, spots[i].observation.point_in_scene);
+  }
+  EXPECT_EQ(back->num_unassigned(), 2);
+  spots[0].observation.beam_id = -1;
+  EXPECT_EQ(FormatSpotsCsv(spots).status().message(),
+            "spot 0 (source 'A'): beam id must be >= 1 (or 0: unassigned), got -1");
+}
+
+TEST(SpotsCsv, GroupSpotsBySourceLeavesUnassignedOut) {
+  Result<SpotsCsvData> r =
+      ParseSpotsCsv("source,beam,x,y,z\nB,2,1,2,3\n,,4,5,6\nA,1,7,8,9\nA,,1,1,1\nB,3,0,0,1\n",
+                    "s.csv");
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  const auto groups = GroupSpotsBySource(r->spots);
+  ASSERT_EQ(groups.size(), 2u);
+  ASSERT_EQ(groups.at("A").size(), 1u);
+  EXPECT_EQ(groups.at("A")[0].beam_id, 1);
+  ASSERT_EQ(groups.at("B").size(), 2u);
+  EXPECT_EQ(groups.at("B")[1].point_in_scene, Eigen::Vector3d(0, 0, 1));
 }
 
 TEST(SpotsCsv, MalformedQuotes) {

@@ -287,11 +287,6 @@ Result<int> ParseInt(const std::string& text, const std::string& context) {
   return value;
 }
 
-std::string FormatDoubleExact(double value) {
-  char buffer[64];
-  const std::to_chars_result r = std::to_chars(buffer, buffer + sizeof(buffer), value);
-  return std::string(buffer, r.ptr);
-}
 
 }  // namespace csv_internal
 }  // namespace opl

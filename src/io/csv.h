@@ -85,8 +85,5 @@ std::string Shown(const std::string& text);
 // ASCII lower case.
 std::string Lower(std::string s);
 
-// The shortest decimal text that reads back as exactly `value` (round trip).
-std::string FormatDoubleExact(double value);
-
 }  // namespace csv_internal
 }  // namespace opl

@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include "io/csv.h"
+#include "opl/core/format.h"
 #include "opl/geometry/rotation.h"
 #include "opl/io/atomic_file.h"
 
@@ -215,7 +216,7 @@ Result<SourceCalibration> ParseSource(const Fields& f, const json& src, const st
     const double norm = q.norm();
     if (std::abs(norm - 1.0) > 1e-9) {
       return f.Error(qpath, "not a unit quaternion (norm " +
-                                csv_internal::FormatDoubleExact(norm) + ")");
+                                FormatRoundTrip(norm) + ")");
     }
     // Keep a quaternion that is unit to rounding as is, so that a file written
     // by FormatModuleCalibrationJson reads back bit-exact.
@@ -225,7 +226,7 @@ Result<SourceCalibration> ParseSource(const Fields& f, const json& src, const st
     const double disagreement = RotationAngleBetweenRad(R_angles, q.toRotationMatrix());
     if (!(disagreement <= 1e-9)) {
       return f.Error(qpath, "disagrees with rotation_xyz_rad by " +
-                                csv_internal::FormatDoubleExact(disagreement) + " rad");
+                                FormatRoundTrip(disagreement) + " rad");
     }
     source.calibration_from_source.rotation = q;
   }
@@ -310,7 +311,7 @@ Result<Separation> ParseSeparation(const Fields& f, const json& sj, const std::s
 // JSON text of a double that reads back exactly (always with a '.' or an
 // exponent, so that -0.0 keeps its sign and integral values stay floats).
 std::string JsonDouble(double v) {
-  std::string s = csv_internal::FormatDoubleExact(v);
+  std::string s = FormatRoundTrip(v);
   if (s.find_first_of(".e") == std::string::npos) s += ".0";
   return s;
 }

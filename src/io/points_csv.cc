@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "io/csv.h"
+#include "opl/core/format.h"
 #include "opl/io/atomic_file.h"
 
 namespace opl {
@@ -51,7 +52,7 @@ Result<PointsCsv> PointsCsv::Read(const std::string& path) {
 Status PointsCsv::Scale(double s) {
   if (!(std::isfinite(s) && s > 0.0)) {
     return Status::InvalidArgument("scale factor must be finite and > 0, got " +
-                                   csv_internal::FormatDoubleExact(s));
+                                   FormatRoundTrip(s));
   }
   for (Eigen::Vector3d& p : points_) p *= s;
   return Status::Ok();
@@ -67,7 +68,7 @@ std::string PointsCsv::Format() const {
       for (int k = 0; k < 3; ++k) {
         if (column_[k] == static_cast<int>(i)) axis = k;
       }
-      out += axis >= 0 ? csv_internal::FormatDoubleExact(points_[r][axis]) : fields[i];
+      out += axis >= 0 ? FormatRoundTrip(points_[r][axis]) : fields[i];
     }
     out += '\n';
   }

@@ -4,6 +4,7 @@
 
 #include "io/csv.h"
 #include "io/spot_fields.h"
+#include "opl/core/format.h"
 #include "opl/io/atomic_file.h"
 
 namespace opl {
@@ -103,7 +104,7 @@ Result<std::string> FormatSpotsCsv(const std::vector<Spot>& spots,
     // An unassigned beam (id 0) is written as an empty field, which reads back as 0.
     const int beam = s.observation.beam_id;
     out += csv_internal::QuoteCsvField(s.source) + "," + (beam == 0 ? "" : std::to_string(beam));
-    for (int k = 0; k < 3; ++k) out += "," + csv_internal::FormatDoubleExact(p[k]);
+    for (int k = 0; k < 3; ++k) out += "," + FormatRoundTrip(p[k]);
     if (sigmas) {
       const Eigen::Matrix3d& C = *s.observation.cov_in_scene;
       for (int k = 0; k < 3; ++k) {
@@ -113,7 +114,7 @@ Result<std::string> FormatSpotsCsv(const std::vector<Spot>& spots,
                                          "', beam " + std::to_string(s.observation.beam_id) +
                                          "): standard deviation is not finite and > 0");
         }
-        out += "," + csv_internal::FormatDoubleExact(sigma);
+        out += "," + FormatRoundTrip(sigma);
       }
     }
     for (const SpotsCsvExtraColumn& c : extra) {

@@ -1,14 +1,13 @@
 #include "opl/sim/simulate_slices.h"
 
-#include <charconv>
 #include <cmath>
 #include <string>
-#include <system_error>
 #include <utility>
 
 #include <Eigen/Geometry>
 
 #include "opl/core/format.h"
+#include "opl/core/number_list.h"
 #include "opl/sim/random.h"
 
 namespace opl {
@@ -16,48 +15,11 @@ namespace {
 
 using Vec3 = Eigen::Vector3d;
 
-constexpr size_t kMaxDepths = 10000;
-
 // A unit vector perpendicular to unit `d` (deterministic).
 Vec3 AnyPerpendicular(const Vec3& d) {
   int k = 0;
   d.cwiseAbs().minCoeff(&k);
   return d.cross(Vec3::Unit(k)).normalized();
-}
-
-std::string Trim(const std::string& s) {
-  const size_t first = s.find_first_not_of(" \t");
-  if (first == std::string::npos) return std::string();
-  const size_t last = s.find_last_not_of(" \t");
-  return s.substr(first, last - first + 1);
-}
-
-// A finite decimal number filling all of `item` (trimmed), or an error
-// naming it within the whole `text`.
-Result<double> ParseNumber(const std::string& item, const std::string& text) {
-  const std::string s = Trim(item);
-  double value = 0.0;
-  const char* begin = s.data();
-  if (s.size() > 1 && s[0] == '+' && s[1] != '-' && s[1] != '+') ++begin;  // from_chars takes no '+'
-  const char* end = s.data() + s.size();
-  const std::from_chars_result r = std::from_chars(begin, end, value);
-  if (s.empty() || r.ec != std::errc() || r.ptr != end || !std::isfinite(value)) {
-    return Status::InvalidArgument("depth list '" + text + "': '" + s +
-                                   "' is not a finite number");
-  }
-  return value;
-}
-
-std::vector<std::string> Split(const std::string& s, char separator) {
-  std::vector<std::string> parts;
-  size_t start = 0;
-  while (true) {
-    const size_t at = s.find(separator, start);
-    parts.push_back(s.substr(start, at == std::string::npos ? std::string::npos : at - start));
-    if (at == std::string::npos) break;
-    start = at + 1;
-  }
-  return parts;
 }
 
 }  // namespace
@@ -195,73 +157,11 @@ Result<std::vector<SimulatedSpot>> SimulateSlices(const ModuleDesign& design,
 }
 
 Result<std::vector<double>> ParseDepthList(const std::string& text) {
-  const std::string syntax =
-      " (expected first:step:last, e.g. 750:65:1335, or a comma-separated list, e.g. "
-      "750,815,880)";
-  if (Trim(text).empty()) return Status::InvalidArgument("empty depth list" + syntax);
-  const bool is_range = text.find(':') != std::string::npos;
-  if (is_range && text.find(',') != std::string::npos) {
-    return Status::InvalidArgument("depth list '" + text + "': mixes ':' and ','" + syntax);
-  }
-  if (!is_range) {
-    std::vector<double> depths;
-    for (const std::string& item : Split(text, ',')) {
-      Result<double> value = ParseNumber(item, text);
-      if (!value.ok()) return value.status();
-      depths.push_back(*value);
-      if (depths.size() > kMaxDepths) {
-        return Status::InvalidArgument("depth list '" + text.substr(0, 40) +
-                                       "...': more than " + std::to_string(kMaxDepths) +
-                                       " depths");
-      }
-    }
-    return depths;
-  }
-
-  const std::vector<std::string> parts = Split(text, ':');
-  if (parts.size() != 3) {
-    return Status::InvalidArgument("depth list '" + text + "': a range has three fields" +
-                                   syntax);
-  }
-  double field[3];
-  for (int i = 0; i < 3; ++i) {
-    Result<double> value = ParseNumber(parts[i], text);
-    if (!value.ok()) return value.status();
-    field[i] = *value;
-  }
-  const double first = field[0], step = field[1], last = field[2];
-  if (!(step > 0.0)) {
-    return Status::InvalidArgument("depth list '" + text + "': step must be > 0, got " +
-                                   FormatNumber(step));
-  }
-  if (!(first <= last)) {
-    return Status::InvalidArgument("depth list '" + text + "': first (" + FormatNumber(first) +
-                                   ") must be <= last (" + FormatNumber(last) + ")");
-  }
-  // Number of whole steps; one more when the next value lands on `last`
-  // within 1e-9 relative (rounding of (last - first) / step).
-  const double span = (last - first) / step;
-  if (!(span < static_cast<double>(kMaxDepths))) {
-    return Status::InvalidArgument("depth list '" + text + "' gives more than " +
-                                   std::to_string(kMaxDepths) + " depths");
-  }
-  auto steps = static_cast<size_t>(std::floor(span));
-  const double tolerance = 1e-9 * std::max(std::abs(last), std::abs(first));
-  bool ends_on_last = std::abs(first + static_cast<double>(steps) * step - last) <= tolerance;
-  if (!ends_on_last &&
-      std::abs(first + static_cast<double>(steps + 1) * step - last) <= tolerance) {
-    ++steps;
-    ends_on_last = true;
-  }
-  std::vector<double> depths;
-  depths.reserve(steps + 1);
-  for (size_t i = 0; i <= steps; ++i) depths.push_back(first + static_cast<double>(i) * step);
-  if (ends_on_last) depths.back() = last;
-  if (depths.size() > kMaxDepths) {
-    return Status::InvalidArgument("depth list '" + text + "' gives more than " +
-                                   std::to_string(kMaxDepths) + " depths");
-  }
-  return depths;
+  NumberListSyntax syntax;
+  syntax.noun = "depth";
+  syntax.range_example = "750:65:1335";
+  syntax.list_example = "750,815,880";
+  return ParseNumberList(text, syntax);
 }
 
 }  // namespace opl

@@ -12,6 +12,10 @@ inline constexpr double kPi = 3.14159265358979323846;
 // 10 read well in messages.
 std::string FormatNumber(double value, int significant_digits = 10);
 
+// The shortest decimal text that reads back as exactly `value` (std::to_chars):
+// "0.1", "55.154328932550705", "1e-05".
+std::string FormatRoundTrip(double value);
+
 // printf(fmt, value) for one double, e.g. FormatPrintf("%.4f", x), for reports.
 std::string FormatPrintf(const char* fmt, double value);
 

@@ -45,14 +45,21 @@ Matrix36d PointJacobian(const Eigen::Vector3d& point, const Eigen::Vector3d& ori
   return a;
 }
 
+// The inverse of a symmetric positive definite 6 x 6 matrix, Jacobi-scaled
+// first (rotation and origin blocks differ by the squared scene size);
+// NoSolution when it is singular to double precision.
 Result<Matrix6d> InverseOf(const Matrix6d& information) {
-  Eigen::LDLT<Matrix6d> ldlt(information);
-  const double scale = information.diagonal().cwiseAbs().maxCoeff();
-  if (ldlt.info() != Eigen::Success || !(scale > 0.0) ||
-      ldlt.vectorD().minCoeff() <= 1e-13 * scale) {
+  const Eigen::Matrix<double, 6, 1> d = information.diagonal();
+  if (!(d.minCoeff() > 0.0) || !information.allFinite()) {
     return Status::NoSolution("the spots do not determine the pose (singular information)");
   }
-  Matrix6d inverse = ldlt.solve(Matrix6d::Identity());
+  const Eigen::Matrix<double, 6, 1> s = d.cwiseSqrt().cwiseInverse();
+  const Matrix6d scaled = s.asDiagonal() * information * s.asDiagonal();
+  Eigen::LDLT<Matrix6d> ldlt(scaled);
+  if (ldlt.info() != Eigen::Success || ldlt.vectorD().minCoeff() <= 1e-14) {
+    return Status::NoSolution("the spots do not determine the pose (singular information)");
+  }
+  const Matrix6d inverse = s.asDiagonal() * ldlt.solve(Matrix6d::Identity()) * s.asDiagonal();
   return Matrix6d(0.5 * (inverse + inverse.transpose()));
 }
 

@@ -1,0 +1,318 @@
+#include "opl/uncertainty/design_sweep.h"
+
+#include <cmath>
+#include <limits>
+#include <utility>
+
+#include "opl/core/format.h"
+#include "opl/core/number_list.h"
+#include "opl/sim/simulate_slices.h"
+
+namespace opl {
+namespace {
+
+constexpr double kDegToRad = kPi / 180.0;
+
+struct ParameterInfo {
+  SweepParameter parameter;
+  const char* name;
+  const char* label;
+};
+
+constexpr ParameterInfo kParameters[] = {
+    {SweepParameter::kNoiseMm, "noise_mm", "spot noise sigma, largest axis (mm)"},
+    {SweepParameter::kFullAngleDeg, "full_angle_deg", "full fan angle (deg)"},
+    {SweepParameter::kBeamsPerSide, "beams_per_side", "beams per side n"},
+    {SweepParameter::kSeparationMm, "separation_mm", "separation of the origins (mm)"},
+    {SweepParameter::kDistanceMm, "distance_mm", "projection distance (mm)"},
+    {SweepParameter::kStaggerDeg, "stagger_deg",
+     "stagger of the baseline (deg; 0 side by side, 45 staggered)"},
+};
+
+std::string KnownNames() {
+  std::string names;
+  for (const ParameterInfo& p : kParameters) names += std::string(names.empty() ? "" : ", ") + p.name;
+  return names + ", layout";
+}
+
+Status OutOfDomain(SweepParameter parameter, double value, const std::string& rule) {
+  return Status::InvalidArgument(std::string(SweepParameterName(parameter)) + " = " +
+                                 FormatNumber(value) + ": " + rule);
+}
+
+std::string Number(double v) { return FormatRoundTrip(v); }
+
+}  // namespace
+
+const char* SweepParameterName(SweepParameter parameter) {
+  for (const ParameterInfo& p : kParameters) {
+    if (p.parameter == parameter) return p.name;
+  }
+  return "?";
+}
+
+std::string SweepParameterLabel(SweepParameter parameter) {
+  for (const ParameterInfo& p : kParameters) {
+    if (p.parameter == parameter) return p.label;
+  }
+  return "?";
+}
+
+Result<SweepParameter> ParseSweepParameter(const std::string& text) {
+  if (text == "layout") return SweepParameter::kStaggerDeg;
+  for (const ParameterInfo& p : kParameters) {
+    if (text == p.name) return p.parameter;
+  }
+  return Status::InvalidArgument("unknown sweep parameter '" + text + "' (known: " + KnownNames() +
+                                 ")");
+}
+
+Result<std::vector<double>> ParseSweepValues(const std::string& text_parameter,
+                                             const std::string& values) {
+  if (text_parameter == "layout") {
+    std::vector<double> out;
+    size_t start = 0;
+    while (true) {
+      const size_t at = values.find(',', start);
+      const std::string word =
+          values.substr(start, at == std::string::npos ? std::string::npos : at - start);
+      if (word == "side_by_side") {
+        out.push_back(0.0);
+      } else if (word == "staggered") {
+        out.push_back(45.0);
+      } else {
+        return Status::InvalidArgument("layout '" + word +
+                                       "': expected side_by_side or staggered (or sweep "
+                                       "stagger_deg for other angles)");
+      }
+      if (at == std::string::npos) break;
+      start = at + 1;
+    }
+    return out;
+  }
+  NumberListSyntax syntax;
+  syntax.noun = "value";
+  return ParseNumberList(values, syntax);
+}
+
+Result<ModuleDesign> ApplySweepValue(const ModuleDesign& base, SweepParameter parameter,
+                                     double value) {
+  if (!std::isfinite(value)) return OutOfDomain(parameter, value, "not finite");
+  ModuleDesign d = base;
+  switch (parameter) {
+    case SweepParameter::kNoiseMm: {
+      const double largest = d.spot_noise_mm.maxCoeff();
+      if (!(value > 0.0)) return OutOfDomain(parameter, value, "must be > 0");
+      if (!(largest > 0.0)) {
+        return OutOfDomain(parameter, value, "the design's spot noise is zero: no axis ratios");
+      }
+      d.spot_noise_mm *= value / largest;
+      break;
+    }
+    case SweepParameter::kFullAngleDeg:
+      if (!(value > 0.0 && value < 180.0)) {
+        return OutOfDomain(parameter, value, "must be in (0, 180)");
+      }
+      for (SourceDesign& s : d.sources) {
+        if (s.pattern == PatternModel::kFile) {
+          return OutOfDomain(parameter, value,
+                             "source '" + s.name + "' has its pattern from a file");
+        }
+        s.full_angle_deg = value;
+      }
+      break;
+    case SweepParameter::kBeamsPerSide: {
+      const double n = std::round(value);
+      if (n != value || n < 3 || std::fmod(n, 2.0) == 0.0 || n > 1001) {
+        return OutOfDomain(parameter, value, "must be an odd integer in [3, 1001]");
+      }
+      for (SourceDesign& s : d.sources) {
+        if (s.pattern == PatternModel::kFile) {
+          return OutOfDomain(parameter, value,
+                             "source '" + s.name + "' has its pattern from a file");
+        }
+        s.beams_per_side = static_cast<int>(n);
+      }
+      break;
+    }
+    case SweepParameter::kSeparationMm: {
+      if (!(value > 0.0)) return OutOfDomain(parameter, value, "must be > 0");
+      if (d.sources.size() < 2) return OutOfDomain(parameter, value, "needs two sources");
+      const double current = (d.sources[0].scene_from_source.translation -
+                              d.sources[1].scene_from_source.translation)
+                                 .norm();
+      if (!(current > 0.0)) {
+        return OutOfDomain(parameter, value, "the first two origins coincide: no baseline");
+      }
+      Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+      for (const SourceDesign& s : d.sources) centroid += s.scene_from_source.translation;
+      centroid /= static_cast<double>(d.sources.size());
+      for (SourceDesign& s : d.sources) {
+        Eigen::Vector3d& o = s.scene_from_source.translation;
+        o = centroid + (value / current) * (o - centroid);
+      }
+      break;
+    }
+    case SweepParameter::kDistanceMm: {
+      if (!(value > 0.0)) return OutOfDomain(parameter, value, "must be > 0");
+      Result<ModuleViewpoint> view = MeanViewpoint(d);
+      if (!view.ok()) return view.status();
+      const std::optional<Eigen::Vector3d> hit =
+          d.surface.IntersectRay(view->origin_mm, view->viewing_direction);
+      if (!hit) {
+        return OutOfDomain(parameter, value,
+                           std::string("the ") + d.surface.TypeName() +
+                               " is not hit along the module's viewing direction");
+      }
+      const double current = (*hit - view->origin_mm).dot(view->viewing_direction);
+      d.surface = d.surface.Transformed(
+          Rigid3d(Eigen::Matrix3d::Identity(), (value - current) * view->viewing_direction));
+      break;
+    }
+    case SweepParameter::kStaggerDeg: {
+      if (!(value >= 0.0 && value <= 90.0)) {
+        return OutOfDomain(parameter, value, "must be in [0, 90]");
+      }
+      if (d.sources.size() != 2) {
+        return OutOfDomain(parameter, value,
+                           "needs exactly two sources, the design has " +
+                               std::to_string(d.sources.size()));
+      }
+      Result<ModuleViewpoint> view = MeanViewpoint(d);
+      if (!view.ok()) return view.status();
+      const Eigen::Vector3d& v = view->viewing_direction;
+      Eigen::Vector3d& a = d.sources[0].scene_from_source.translation;
+      Eigen::Vector3d& b = d.sources[1].scene_from_source.translation;
+      const Eigen::Vector3d baseline = a - b;
+      const double length = baseline.norm();
+      if (!(length > 0.0)) {
+        return OutOfDomain(parameter, value, "the two origins coincide: no baseline");
+      }
+      Eigen::Vector3d lateral = baseline - baseline.dot(v) * v;
+      if (lateral.norm() < 1e-9 * length) lateral = view->up.cross(v);  // in line: pick a side
+      lateral.normalize();
+      const Eigen::Vector3d midpoint = 0.5 * (a + b);
+      const double angle = value * kDegToRad;
+      const Eigen::Vector3d half =
+          0.5 * length * (std::cos(angle) * lateral + std::sin(angle) * v);
+      a = midpoint + half;
+      b = midpoint - half;
+      break;
+    }
+  }
+  if (Status st = d.Validate(); !st.ok()) {
+    return OutOfDomain(parameter, value, st.message());
+  }
+  return d;
+}
+
+Result<DesignSweep> RunDesignSweep(const ModuleDesign& base, SweepParameter parameter,
+                                   const std::vector<double>& values,
+                                   const MonteCarloOptions& options) {
+  if (values.empty()) return Status::InvalidArgument("no values to sweep");
+  DesignSweep sweep;
+  sweep.parameter = parameter;
+  const int total = static_cast<int>(values.size()) * options.iterations;
+  for (size_t i = 0; i < values.size(); ++i) {
+    const std::string where = std::string(SweepParameterName(parameter)) + " = " +
+                              FormatNumber(values[i]) + ": ";
+    Result<ModuleDesign> design = ApplySweepValue(base, parameter, values[i]);
+    if (!design.ok()) return design.status();  // names the parameter and value
+    MonteCarloOptions point_options = options;
+    if (options.progress) {
+      const int offset = static_cast<int>(i) * options.iterations;
+      point_options.progress = [&options, offset, total](int done, int) {
+        options.progress(offset + done, total);
+      };
+    }
+    Result<MonteCarloReport> report = RunMeasurementMonteCarlo(*design, point_options);
+    if (!report.ok()) {
+      return Status(report.status().code(), where + report.status().message());
+    }
+    sweep.points.push_back({values[i], std::move(*report)});
+  }
+  return sweep;
+}
+
+std::string DesignSweep::ToCsv() const {
+  std::string out =
+      "parameter,value,from,to,true_mm,mean_mm,std_mm,std_u_mm,first_order_std_mm,"
+      "cramer_rao_std_mm,ci95_low_mm,ci95_high_mm,u_rel_ppm,s_std_ppm,s_first_order_std_ppm,"
+      "s_cramer_rao_std_ppm,iterations,failed\n";
+  const std::string name = SweepParameterName(parameter);
+  for (const DesignSweepPoint& p : points) {
+    const MonteCarloReport& r = p.report;
+    for (const MonteCarloLength& l : r.lengths) {
+      const SampleSummary& s = l.photo_mm;
+      const double std_u = r.succeeded > 1 ? s.std_dev / std::sqrt(2.0 * (r.succeeded - 1)) : 0.0;
+      const std::string low = s.has_interval ? Number(s.symmetric.low) : "";
+      const std::string high = s.has_interval ? Number(s.symmetric.high) : "";
+      out += name + "," + Number(p.value) + "," + l.from + "," + l.to + "," + Number(l.true_mm) +
+             "," + Number(s.mean) + "," + Number(s.std_dev) + "," + Number(std_u) + "," +
+             Number(s.first_order_std) + "," + Number(s.cramer_rao_std) + "," + low + "," + high +
+             "," + Number(1e6 * s.std_dev / l.true_mm) + "," +
+             Number(1e6 * r.scale_factor.std_dev) + "," +
+             Number(1e6 * r.scale_factor.first_order_std) + "," +
+             Number(1e6 * r.scale_factor.cramer_rao_std) + "," + std::to_string(r.iterations) +
+             "," + std::to_string(r.failed) + "\n";
+    }
+  }
+  return out;
+}
+
+LinePlot DesignSweep::ToPlot() const {
+  LinePlot plot;
+  plot.title = std::string("Design sweep over ") + SweepParameterName(parameter) +
+               (points.empty() ? std::string()
+                               : " (" + std::to_string(points.front().report.iterations) +
+                                     " Monte Carlo iterations per point, " +
+                                     SpotWeightingName(points.front().report.weighting) +
+                                     " weighting)");
+  PlotPanel absolute, relative;
+  absolute.title = "standard deviation of L";
+  absolute.x_label = relative.x_label = SweepParameterLabel(parameter);
+  absolute.y_label = "std of L (mm)";
+  relative.title = "relative uncertainty of L";
+  relative.y_label = "u(L) / L (ppm)";
+  const size_t lengths = points.empty() ? 0 : points.front().report.lengths.size();
+  for (size_t k = 0; k < lengths; ++k) {
+    const MonteCarloLength& first = points.front().report.lengths[k];
+    const std::string suffix = lengths > 1 ? " " + first.from + "-" + first.to : std::string();
+    PlotSeries mc, fo, crb;
+    mc.label = "Monte Carlo" + suffix;
+    mc.style = PlotSeries::Style::kMarkers;
+    fo.label = "first order" + suffix;
+    fo.style = PlotSeries::Style::kLine;
+    crb.label = "Cramer-Rao bound" + suffix;
+    crb.style = PlotSeries::Style::kDashed;
+    PlotSeries mc_rel = mc, fo_rel = fo, crb_rel = crb;
+    for (const DesignSweepPoint& p : points) {
+      const MonteCarloLength& l = p.report.lengths[k];
+      const SampleSummary& s = l.photo_mm;
+      const int m = p.report.succeeded;
+      const double std_u = m > 1 ? s.std_dev / std::sqrt(2.0 * (m - 1)) : 0.0;
+      const double to_ppm = 1e6 / l.true_mm;
+      for (PlotSeries* series : {&mc, &fo, &crb, &mc_rel, &fo_rel, &crb_rel}) {
+        series->x.push_back(p.value);
+      }
+      mc.y.push_back(s.std_dev);
+      mc.y_err.push_back(std_u);
+      fo.y.push_back(s.first_order_std);
+      crb.y.push_back(s.cramer_rao_std);
+      mc_rel.y.push_back(s.std_dev * to_ppm);
+      mc_rel.y_err.push_back(std_u * to_ppm);
+      fo_rel.y.push_back(s.first_order_std * to_ppm);
+      crb_rel.y.push_back(s.cramer_rao_std * to_ppm);
+    }
+    absolute.series.push_back(std::move(fo));
+    absolute.series.push_back(std::move(crb));
+    absolute.series.push_back(std::move(mc));
+    relative.series.push_back(std::move(fo_rel));
+    relative.series.push_back(std::move(crb_rel));
+    relative.series.push_back(std::move(mc_rel));
+  }
+  plot.panels = {std::move(absolute), std::move(relative)};
+  return plot;
+}
+
+}  // namespace opl

@@ -314,7 +314,7 @@ class Reader {
     OPL_RETURN_IF_ERROR(CheckKeys(s, path,
                                   {"name", "description", "pattern", "beams_per_side",
                                    "full_angle_deg", "wavelength_nm", "pattern_file", "origin_mm",
-                                   "rotation_xyz_rad"}));
+                                   "rotation_xyz_rad", "beam_error_mrad", "beam_error_seed"}));
     const json* v = nullptr;
     OPL_RETURN_IF_ERROR(Require(s, path, "name", &v));
     OPL_RETURN_IF_ERROR(String(*v, path + ".name", &source->name));
@@ -398,6 +398,19 @@ class Reader {
       }
       // Not used by a file pattern; record the central row's span for reports.
       source->full_angle_deg = CentralRowSpanDeg(*read);
+    }
+
+    if (const json* e = Find(s, "beam_error_mrad")) {
+      OPL_RETURN_IF_ERROR(Number(*e, path + ".beam_error_mrad", &source->beam_error_mrad));
+      if (!(source->beam_error_mrad >= 0.0 && source->beam_error_mrad < 100.0)) {
+        return Error(path + ".beam_error_mrad", "must be >= 0 and < 100, got " + Describe(*e));
+      }
+    }
+    if (const json* e = Find(s, "beam_error_seed")) {
+      int seed = 0;
+      OPL_RETURN_IF_ERROR(Integer(*e, path + ".beam_error_seed", &seed));
+      if (seed < 0) return Error(path + ".beam_error_seed", "must be >= 0, got " + Describe(*e));
+      source->beam_error_seed = static_cast<uint64_t>(seed);
     }
 
     Eigen::Vector3d origin_mm, xyz_rad;

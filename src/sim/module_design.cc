@@ -4,7 +4,10 @@
 
 #include <cmath>
 #include <cstdio>
+#include <random>
 #include <set>
+
+#include "opl/sim/random.h"
 
 namespace opl {
 namespace {
@@ -13,6 +16,47 @@ bool IsProperRotation(const Eigen::Matrix3d& R) {
   return R.allFinite() &&
          (R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() <= 1e-9 &&
          std::abs(R.determinant() - 1.0) <= 1e-9;
+}
+
+// The pattern with the source's fabrication error (SourceDesign::beam_error_mrad).
+Result<BeamPattern> WithBeamError(const SourceDesign& source, const BeamPattern& ideal) {
+  if (source.beam_error_mrad == 0.0) return ideal;
+  uint64_t seed = source.beam_error_seed;
+  for (unsigned char c : source.name) seed = SplitMix64(seed ^ c).Next();
+  std::mt19937_64 rng(seed);
+  NormalGenerator normal;
+  const double sigma = source.beam_error_mrad * 1e-3;
+  const int n = ideal.beams_per_side();
+  const int central = ideal.central_beam_id();
+  std::vector<Beam> beams = ideal.beams();
+  for (Beam& b : beams) {
+    const double daz = sigma * normal(rng), del = sigma * normal(rng);  // drawn for every beam
+    if (b.id == central) continue;
+    b.az_rad += daz;
+    b.el_rad += del;
+  }
+  // Level the central row again (sum az_j el_j = 0, the gauge of
+  // docs/calibrate.md): el_j -= k az_j with k the least-squares roll.
+  const int m = (n - 1) / 2;
+  double az_el = 0.0, az_az = 0.0;
+  for (const Beam& b : beams) {
+    if (BeamRow(b.id, n) == m) {
+      az_el += b.az_rad * b.el_rad;
+      az_az += b.az_rad * b.az_rad;
+    }
+  }
+  if (az_az > 0.0) {
+    const double k = az_el / az_az;
+    for (Beam& b : beams) {
+      if (BeamRow(b.id, n) == m) b.el_rad -= k * b.az_rad;
+    }
+  }
+  Result<BeamPattern> pattern = BeamPattern::Create(n, std::move(beams));
+  if (!pattern.ok()) {
+    return Status::InvalidArgument("source '" + source.name + "': beam_error_mrad: " +
+                                   pattern.status().message());
+  }
+  return pattern;
 }
 
 }  // namespace
@@ -37,6 +81,10 @@ Status ModuleDesign::Validate() const {
       const Status st = CheckPatternParameters(s.pattern, s.beams_per_side,
                                                s.full_angle_deg * kPi / 180.0, s.wavelength_nm);
       if (!st.ok()) return Status::InvalidArgument(who + st.message());
+    }
+    if (!(std::isfinite(s.beam_error_mrad) && s.beam_error_mrad >= 0.0 && s.beam_error_mrad < 100.0)) {
+      return Status::InvalidArgument(who + "beam_error_mrad must be finite, >= 0 and < 100, got " +
+                                     FormatNumber(s.beam_error_mrad));
     }
     if (!(std::isfinite(s.wavelength_nm) && s.wavelength_nm > 0.0)) {
       return Status::InvalidArgument(who + "wavelength_nm must be finite and > 0, got " +
@@ -93,10 +141,12 @@ Result<BeamPattern> MakePattern(const SourceDesign& source) {
       const Status st = CheckPatternParameters(source.pattern, source.beams_per_side,
                                                full_angle_rad, source.wavelength_nm);
       if (!st.ok()) return Status::InvalidArgument(who + st.message());
-      if (source.pattern == PatternModel::kEqualAngle) {
-        return MakeEqualAnglePattern(source.beams_per_side, full_angle_rad);
-      }
-      return MakeGratingPattern(source.beams_per_side, full_angle_rad, source.wavelength_nm);
+      Result<BeamPattern> ideal =
+          source.pattern == PatternModel::kEqualAngle
+              ? MakeEqualAnglePattern(source.beams_per_side, full_angle_rad)
+              : MakeGratingPattern(source.beams_per_side, full_angle_rad, source.wavelength_nm);
+      if (!ideal.ok()) return ideal;
+      return WithBeamError(source, *ideal);
     }
     case PatternModel::kFile: {
       if (source.pattern_file.empty()) {
@@ -112,7 +162,7 @@ Result<BeamPattern> MakePattern(const SourceDesign& source) {
             std::to_string(pattern->beams_per_side()) + " but the design says " +
             std::to_string(source.beams_per_side));
       }
-      return pattern;
+      return WithBeamError(source, *pattern);
     }
   }
   return Status::InvalidArgument(who + "unknown pattern model");

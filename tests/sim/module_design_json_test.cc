@@ -237,7 +237,8 @@ TEST(ModuleDesignJson, EveryErrorNamesFileFieldAndProblem) {
   ExpectError(Doc("[3]", kPlane), "design.json: sources[0]: expected an object, got 3");
   // Unknown fields (typos) are errors.
   ExpectError(Replace(ok, R"("wavelength_nm": 635)", R"("wavelenght_nm": 635)"),
-              "design.json: sources[1].wavelenght_nm: unknown field (allowed here: beams_per_side, "
+              "design.json: sources[1].wavelenght_nm: unknown field (allowed here: beam_error_mrad, "
+              "beam_error_seed, beams_per_side, "
               "description, full_angle_deg, name, origin_mm, pattern, pattern_file, "
               "rotation_xyz_rad, wavelength_nm)");
   // Surfaces.

@@ -128,6 +128,47 @@ TEST(ModuleDesign, MakePatternPerModel) {
   std::filesystem::remove(path);
 }
 
+// Fabrication error: fixed per source (seed and name), sigma as asked, the
+// central beam exact and the central row level (the calibration gauge).
+TEST(ModuleDesign, BeamErrorKeepsTheGaugeAndHasItsSigma) {
+  SourceDesign s = Source("A", Eigen::Vector3d::Zero());
+  Result<BeamPattern> ideal = MakePattern(s);
+  s.beam_error_mrad = 0.5;
+  s.beam_error_seed = 7;
+  Result<BeamPattern> real = MakePattern(s);
+  Result<BeamPattern> again = MakePattern(s);
+  ASSERT_TRUE(ideal.ok() && real.ok() && again.ok());
+  const int n = 11, central_row = 5;
+  double sum_sq = 0.0, level = 0.0;
+  int count = 0;
+  for (const Beam& b : real->beams()) {
+    const Beam* i = ideal->Find(b.id);
+    EXPECT_EQ(b.az_rad, again->Find(b.id)->az_rad);  // repeatable
+    if (b.id == real->central_beam_id()) {
+      EXPECT_EQ(b.az_rad, 0.0);
+      EXPECT_EQ(b.el_rad, 0.0);
+      continue;
+    }
+    if (BeamRow(b.id, n) == central_row) level += b.az_rad * b.el_rad;
+    sum_sq += (b.az_rad - i->az_rad) * (b.az_rad - i->az_rad) +
+              (b.el_rad - i->el_rad) * (b.el_rad - i->el_rad);
+    count += 2;
+  }
+  EXPECT_NEAR(level, 0.0, 1e-18);
+  // 240 draws: the RMS is within 15 % of sigma (4.5 standard errors).
+  EXPECT_NEAR(std::sqrt(sum_sq / count), 0.5e-3, 0.075e-3);
+  // Another name, another element.
+  s.name = "B";
+  Result<BeamPattern> other = MakePattern(s);
+  ASSERT_TRUE(other.ok());
+  EXPECT_NE(other->Find(1)->az_rad, real->Find(1)->az_rad);
+  s.beam_error_mrad = -1.0;
+  ModuleDesign d = Prototype();
+  d.sources[1].beam_error_mrad = -1.0;
+  EXPECT_EQ(d.Validate().message(),
+            "source 'B': beam_error_mrad must be finite, >= 0 and < 100, got -1");
+}
+
 TEST(ModuleDesign, ExactCalibrationOfPrototype) {
   const Result<ModuleCalibration> cal = ExactCalibration(Prototype());
   ASSERT_TRUE(cal.ok()) << cal.status().ToString();

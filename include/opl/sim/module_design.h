@@ -19,6 +19,7 @@
 // frame, and the exact separations between all pairs of origins (u = 0).
 #pragma once
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -44,6 +45,16 @@ struct SourceDesign {
   // the JSON file's folder.
   std::string pattern_file;
   Rigid3d scene_from_source;  // translation = projection origin, mm
+  // Fabrication error of the diffractive element: every beam but the central
+  // one gets a fixed random error, N(0, beam_error_mrad^2) on az and on el
+  // (mrad, >= 0; 0: the ideal pattern), drawn from beam_error_seed and the
+  // source's name, then the central row is levelled again (docs/simulation.md,
+  // "Fabrication error"): the pattern stays in the calibration gauge. An ideal
+  // equal-angle or grating pattern is symmetric under a 90 deg roll, so its
+  // grid alone cannot tell which way up it is; a real element's errors break
+  // that symmetry, and identification (identify_spots.h) relies on them.
+  double beam_error_mrad = 0.0;
+  uint64_t beam_error_seed = 1;
 };
 
 struct ModuleDesign {

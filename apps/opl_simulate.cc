@@ -6,6 +6,7 @@
 //   opl_simulate calibration --design D.json --out cal.json
 //   opl_simulate mc --design D.json --iterations N [--seed S] [--threads T]
 //                   [--noise-scale F] [--weighting W] [--json]
+//                   [--calibration [--depths LIST] [--tilt-deg A] [--curvature C]]
 //   opl_simulate sweep --design D.json --param P --values LIST --out sweep.csv
 //                   [--plot sweep.png] [--iterations N] [--seed S] [--threads T]
 //                   [--weighting W]
@@ -32,6 +33,7 @@
 #include "opl/sim/simulate_slices.h"
 #include "opl/sim/simulate_spots.h"
 #include "opl/report/line_plot.h"
+#include "opl/uncertainty/calibration_monte_carlo.h"
 #include "opl/uncertainty/design_sweep.h"
 #include "opl/uncertainty/monte_carlo.h"
 
@@ -54,6 +56,7 @@ struct Args {
   int threads = 0;
   bool json = false;
   std::string weighting = "efficient";
+  bool calibration = false;  // mc of a calibration session
   // sweep only
   std::string param;
   std::string values;
@@ -190,11 +193,53 @@ int CalibrationCommand(const Args& args) {
   return cli::kExitOk;
 }
 
+int CalibrationMonteCarloCommand(const Args& args, const opl::ModuleDesign& design) {
+  using namespace opl;
+  CalibrationMonteCarloOptions options;
+  options.iterations = args.iterations;
+  options.seed = args.spots.seed;
+  options.threads = args.threads;
+  if (args.depths_given) {
+    Result<std::vector<double>> depths = ParseDepthList(args.depths);
+    if (!depths.ok()) {
+      return cli::Fail(kTool, "--depths: " + depths.status().message() + " (see --help)",
+                       cli::kExitUsage);
+    }
+    options.screens.depths_mm = std::move(*depths);
+  }
+  options.screens.tilt_deg = args.tilt_deg;
+  options.screens.curvature_per_mm = args.curvature_per_mm;
+  if (Status st = options.Validate(); !st.ok()) {
+    return cli::Fail(kTool, "invalid option: " + st.message(), cli::kExitBadInput);
+  }
+  cli::ProgressBar bar("mc", cli::StderrIsTerminal());
+  options.progress = [&bar](int done, int total) { bar.Update(done, total); };
+  Result<CalibrationMonteCarloReport> report = RunCalibrationMonteCarlo(design, options);
+  bar.Finish();
+  if (!report.ok()) return cli::FailInput(kTool, report.status());
+  if (report->failed > 0) {
+    std::fprintf(stderr, "%s: warning: %d of %d iterations failed and were left out; %s\n",
+                 kTool, report->failed, report->iterations, report->first_failure.c_str());
+  }
+  return cli::PrintToStdout(kTool, args.json ? report->ToJson() : report->ToText());
+}
+
 int MonteCarloCommand(const Args& args) {
   using namespace opl;
   ModuleDesign design;
   SpotSimulationOptions unused;
   if (std::optional<int> code = PrepareSpotSimulation(args, &design, &unused)) return *code;
+  if (args.calibration) {
+    if (args.weighting != "efficient") {
+      return cli::Fail(kTool, "--weighting applies to a measurement, not to --calibration",
+                       cli::kExitUsage);
+    }
+    return CalibrationMonteCarloCommand(args, design);
+  }
+  if (args.depths_given || args.tilt_deg != 0.0 || args.curvature_per_mm != 0.0) {
+    return cli::Fail(kTool, "--depths, --tilt-deg and --curvature need --calibration",
+                     cli::kExitUsage);
+  }
   MonteCarloOptions options;
   options.iterations = args.iterations;
   options.seed = args.spots.seed;
@@ -455,6 +500,20 @@ int Run(int argc, char** argv) {
                  "(plain angular residuals, as for spots without sigmas)")
       ->capture_default_str()
       ->type_name("W");
+  mc->add_flag("--calibration", args.calibration,
+               "Monte Carlo of a calibration session instead of a measurement: the screens of\n"
+               "`slices` (--depths, --tilt-deg, --curvature), every iteration a noisy session\n"
+               "calibrated with opl_calibrate's solver: the spread of every origin, pose, beam\n"
+               "direction and separation against the calibration's own uncertainty");
+  CLI::Option* mc_depths =
+      mc->add_option("--depths", args.depths,
+                     "With --calibration: the screen depths, mm (default 750:65:1335)")
+          ->type_name("LIST");
+  mc->add_option("--tilt-deg", args.tilt_deg, "With --calibration: screen tilt, degrees (see slices)")
+      ->capture_default_str();
+  mc->add_option("--curvature", args.curvature_per_mm,
+                 "With --calibration: screen curvature, 1/mm (see slices)")
+      ->capture_default_str();
   mc->add_flag("--json", args.json,
                "Write one JSON object (format opl.monte_carlo_report, docs/uncertainty.md)\n"
                "instead of the text summary");
@@ -462,7 +521,11 @@ int Run(int argc, char** argv) {
       "  opl_simulate mc --design examples/staggered_design.json --iterations 5000\n"
       "  opl_simulate mc --design examples/staggered_design.json --iterations 5000 --seed 7 \\\n"
       "      --threads 2 --json > mc.json\n"
-      "  opl_simulate mc --design examples/prototype_design.json --iterations 2000 --noise-scale 2\n";
+      "  opl_simulate mc --design examples/prototype_design.json --iterations 2000 --noise-scale 2\n"
+      "  opl_simulate mc --design examples/anisotropic_design.json --iterations 2000 \\\n"
+      "      --weighting unweighted\n"
+      "  opl_simulate mc --design examples/prototype_design.json --iterations 500 --calibration \\\n"
+      "      --depths 750:65:1335\n";
   mc->footer(opl::cli::HelpFooter(mc_examples));
 
   CLI::App* sweep = app.add_subcommand(
@@ -518,7 +581,10 @@ int Run(int argc, char** argv) {
   sweep->footer(opl::cli::HelpFooter(sweep_examples));
 
   if (std::optional<int> code = opl::cli::ParseCommandLine(app, argc, argv)) return *code;
-  if (mc->parsed()) return MonteCarloCommand(args);
+  if (mc->parsed()) {
+    args.depths_given = mc_depths->count() > 0;
+    return MonteCarloCommand(args);
+  }
   if (sweep->parsed()) return SweepCommand(args);
   if (spots->parsed()) return SimulateSpotsCommand(args);
   if (slices->parsed()) {

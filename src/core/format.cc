@@ -23,4 +23,9 @@ std::string FormatPrintf(const char* fmt, double value) {
   return buffer;
 }
 
+std::string FormatTriple(const char* fmt, const Eigen::Vector3d& v) {
+  return "(" + FormatPrintf(fmt, v.x()) + ", " + FormatPrintf(fmt, v.y()) + ", " +
+         FormatPrintf(fmt, v.z()) + ")";
+}
+
 }  // namespace opl

@@ -1,43 +1,31 @@
 #include "opl/uncertainty/monte_carlo.h"
 
 #include <algorithm>
-#include <atomic>
-#include <chrono>
 #include <cmath>
-#include <condition_variable>
 #include <cstdio>
-#include <exception>
-#include <mutex>
 #include <random>
-#include <thread>
 #include <utility>
 
 #include <nlohmann/json.hpp>
 
 #include "opl/core/format.h"
+#include "opl/geometry/spherical.h"
 #include "opl/geometry/rotation.h"
 #include "opl/model/module_calibration.h"
 #include "opl/scale/scale_factor.h"
 #include "opl/sim/random.h"
 #include "opl/sim/simulate_spots.h"
 
+#include "uncertainty/parallel_iterations.h"
+#include "uncertainty/report_helpers.h"
+
 namespace opl {
 namespace {
 
-std::string Triple(const char* fmt, const Eigen::Vector3d& v) {
-  return "(" + FormatPrintf(fmt, v.x()) + ", " + FormatPrintf(fmt, v.y()) + ", " + FormatPrintf(fmt, v.z()) + ")";
-}
-
-double Ratio(double a, double b) { return b > 0.0 ? a / b : 0.0; }
-
-double WrapAngle(double a) {
-  a = std::remainder(a, 2.0 * kPi);  // [-pi, pi]
-  return a <= -kPi ? a + 2.0 * kPi : a;
-}
-
-Eigen::Vector3d StdDevs(const Eigen::Matrix3d& cov) {
-  return cov.diagonal().cwiseMax(0.0).cwiseSqrt();
-}
+using internal::IntervalJson;
+using internal::Ratio;
+using internal::StdDevs;
+using internal::VectorJson;
 
 // One source as every iteration needs it.
 struct SourceSetup {
@@ -95,7 +83,7 @@ IterationResult RunIteration(const Problem& problem, int iteration) {
     }
     result.origins.push_back(r->scene_from_source.translation);
     Eigen::Vector3d offset;
-    for (int k = 0; k < 3; ++k) offset[k] = WrapAngle(r->rotation_xyz_rad[k] - source.angles[k]);
+    for (int k = 0; k < 3; ++k) offset[k] = WrapAngleRad(r->rotation_xyz_rad[k] - source.angles[k]);
     result.angle_offsets.push_back(offset);
     located.push_back({source.name, r->scene_from_source.translation, r->origin_covariance});
   }
@@ -116,15 +104,6 @@ IterationResult RunIteration(const Problem& problem, int iteration) {
   result.scale = scale->scale_factor;
   result.ok = true;
   return result;
-}
-
-nlohmann::ordered_json VectorJson(const Eigen::Vector3d& v) {
-  return nlohmann::ordered_json::array({v.x(), v.y(), v.z()});
-}
-
-nlohmann::ordered_json IntervalJson(const SampleSummary& s, const CoverageInterval& c) {
-  if (!s.has_interval) return nullptr;
-  return nlohmann::ordered_json::array({c.low, c.high});
 }
 
 }  // namespace
@@ -303,48 +282,18 @@ Result<MonteCarloReport> RunMeasurementMonteCarlo(const ModuleDesign& design,
     problem.pairs.emplace_back(sep.from, sep.to);
   }
 
-  // The iterations, on a pool of threads; results by index.
+  // The iterations, on a pool of threads (parallel_iterations.h); results by index.
   const int m = options.iterations;
-  int threads = options.threads;
-  if (threads == 0) threads = std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
-  threads = std::min(threads, m);
-  report.threads = threads;
-  std::vector<IterationResult> results(static_cast<size_t>(m));
-  std::atomic<int> next{0};
-  std::atomic<int> done{0};
-  std::mutex mutex;
-  std::condition_variable all_done;
-  auto worker = [&]() {
-    for (;;) {
-      const int i = next.fetch_add(1);
-      if (i >= m) break;
-      try {
-        results[static_cast<size_t>(i)] = RunIteration(problem, i);
-      } catch (const std::exception& e) {
-        results[static_cast<size_t>(i)].ok = false;
-        results[static_cast<size_t>(i)].error = std::string("exception: ") + e.what();
-      }
-      if (done.fetch_add(1) + 1 == m) {
-        std::lock_guard<std::mutex> lock(mutex);
-        all_done.notify_all();
-      }
-    }
-  };
-  std::vector<std::thread> pool;
-  pool.reserve(static_cast<size_t>(threads));
-  for (int t = 0; t < threads; ++t) pool.emplace_back(worker);
-  if (options.progress) {
-    const auto interval = std::chrono::duration<double>(options.progress_interval_s);
-    std::unique_lock<std::mutex> lock(mutex);
-    while (!all_done.wait_for(lock, interval, [&] { return done.load() >= m; })) {
-      const int d = done.load();
-      lock.unlock();
-      options.progress(d, m);
-      lock.lock();
-    }
-  }
-  for (std::thread& t : pool) t.join();
-  if (options.progress) options.progress(m, m);
+  std::vector<IterationResult> results;
+  report.threads = internal::IterationThreads(options.threads, m);
+  internal::RunIterations<IterationResult>(
+      m, report.threads, [&problem](int i) { return RunIteration(problem, i); },
+      [](int, const std::string& what) {
+        IterationResult failed;
+        failed.error = "exception: " + what;
+        return failed;
+      },
+      &results, options.progress, options.progress_interval_s);
 
   // Reduction, in index order.
   const size_t ns = sources.size();
@@ -400,7 +349,7 @@ std::string MonteCarloReport::ToText() const {
   std::string out;
   out += "Monte Carlo (JCGM 101): " + std::to_string(iterations) + " iterations, " +
          std::to_string(succeeded) + " located, " + std::to_string(failed) + " failed; seed " +
-         std::to_string(seed) + "; spot noise " + Triple("%.4g", spot_noise_mm) + " mm; " +
+         std::to_string(seed) + "; spot noise " + FormatTriple("%.4g", spot_noise_mm) + " mm; " +
          SpotWeightingName(weighting) + " weighting\n";
   if (failed > 0) out += "  first failure: " + first_failure + "\n";
   const std::string pct = FormatPrintf("%g", coverage_probability * 100.0);
@@ -435,13 +384,13 @@ std::string MonteCarloReport::ToText() const {
   out += "Sources (std MC / FO / CRB; origin in mm, rotation angles R = Rx Ry Rz in urad):\n";
   for (const MonteCarloSource& src : sources) {
     out += "  " + src.name + " (" + std::to_string(src.spots) + " spots): origin mean " +
-           Triple("%.4f", src.origin_mean_mm) + "\n";
-    out += "    origin std   MC " + Triple("%.5f", src.origin_std_mm) + "  FO " +
-           Triple("%.5f", src.origin_first_order_std_mm) + "  CRB " +
-           Triple("%.5f", src.origin_cramer_rao_std_mm) + "\n";
-    out += "    rotation std MC " + Triple("%.2f", src.rotation_std_rad * 1e6) + "  FO " +
-           Triple("%.2f", src.rotation_first_order_std_rad * 1e6) + "  CRB " +
-           Triple("%.2f", src.rotation_cramer_rao_std_rad * 1e6) + "\n";
+           FormatTriple("%.4f", src.origin_mean_mm) + "\n";
+    out += "    origin std   MC " + FormatTriple("%.5f", src.origin_std_mm) + "  FO " +
+           FormatTriple("%.5f", src.origin_first_order_std_mm) + "  CRB " +
+           FormatTriple("%.5f", src.origin_cramer_rao_std_mm) + "\n";
+    out += "    rotation std MC " + FormatTriple("%.2f", src.rotation_std_rad * 1e6) + "  FO " +
+           FormatTriple("%.2f", src.rotation_first_order_std_rad * 1e6) + "  CRB " +
+           FormatTriple("%.2f", src.rotation_cramer_rao_std_rad * 1e6) + "\n";
   }
   return out;
 }

@@ -90,6 +90,36 @@ TEST(SimulateMcCli, Errors) {
   ExpectFailure(Simulate("mc --design /nonexistent/d.json --iterations 5"), 3, "opl_simulate: ");
 }
 
+// The calibration Monte Carlo: a session of 4 screens, 30 iterations.
+TEST(SimulateMcCli, CalibrationSession) {
+  const RunResult r = Simulate("mc --design " + kDesign +
+                               " --iterations 30 --threads 2 --calibration --depths 800:150:1250 --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["format"], "opl.calibration_monte_carlo_report");
+  EXPECT_EQ(j["depths_mm"].size(), 4u);
+  ASSERT_EQ(j["lengths"].size(), 1u);
+  // The separation: std from 30 draws within 40 % of first order (4 screens).
+  const double ratio = j["lengths"][0]["std_mm"].get<double>() /
+                       j["lengths"][0]["first_order_std_mm"].get<double>();
+  EXPECT_GT(ratio, 0.6);
+  EXPECT_LT(ratio, 1.4);
+  ASSERT_EQ(j["sources"].size(), 2u);
+  EXPECT_EQ(j["sources"][0]["beams"].size(), 121u);
+}
+
+TEST(SimulateMcCli, CalibrationOptionsNeedCalibration) {
+  ExpectFailure(Simulate("mc --design " + kDesign + " --iterations 5 --depths 800,900"), 2,
+                "opl_simulate: --depths, --tilt-deg and --curvature need --calibration");
+  ExpectFailure(Simulate("mc --design " + kDesign +
+                         " --iterations 5 --calibration --weighting unweighted"),
+                2, "opl_simulate: --weighting applies to a measurement");
+  ExpectFailure(Simulate("mc --design " + kDesign + " --iterations 5 --calibration --depths 800:x:900"),
+                2, "opl_simulate: --depths: depth list '800:x:900'");
+  ExpectFailure(Simulate("mc --design " + kDesign + " --iterations 5 --weighting best"), 2,
+                "opl_simulate: --weighting: unknown weighting 'best'");
+}
+
 TEST(SimulateMcCli, HelpTeaches) {
   const RunResult r = Simulate("mc --help");
   EXPECT_EQ(r.exit_code, 0);

@@ -1,0 +1,31 @@
+// Internal to src/uncertainty: what the Monte Carlo reports (monte_carlo.cc,
+// calibration_monte_carlo.cc) share to write their text and JSON.
+#pragma once
+
+#include <Eigen/Core>
+#include <nlohmann/json.hpp>
+
+#include "opl/uncertainty/monte_carlo.h"
+
+namespace opl::internal {
+
+// Standard deviations from the diagonal of a covariance (negatives from
+// rounding read as 0).
+inline Eigen::Vector3d StdDevs(const Eigen::Matrix3d& cov) {
+  return cov.diagonal().cwiseMax(0.0).cwiseSqrt();
+}
+
+// a / b, or 0 when b is not positive (a ratio to a zero prediction).
+inline double Ratio(double a, double b) { return b > 0.0 ? a / b : 0.0; }
+
+inline nlohmann::ordered_json VectorJson(const Eigen::Vector3d& v) {
+  return nlohmann::ordered_json::array({v.x(), v.y(), v.z()});
+}
+
+// [low, high] of a coverage interval, or null when the sample is too small.
+inline nlohmann::ordered_json IntervalJson(const SampleSummary& s, const CoverageInterval& c) {
+  if (!s.has_interval) return nullptr;
+  return nlohmann::ordered_json::array({c.low, c.high});
+}
+
+}  // namespace opl::internal

@@ -1,5 +1,6 @@
 #include "opl/pipeline/measure.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <map>
@@ -13,14 +14,14 @@ namespace {
 
 constexpr double kRadToDeg = 180.0 / M_PI;
 
-std::string Triple(const char* fmt, const Eigen::Vector3d& v) {
-  return "(" + FormatPrintf(fmt, v.x()) + ", " + FormatPrintf(fmt, v.y()) + ", " + FormatPrintf(fmt, v.z()) + ")";
-}
-
 std::string JoinInts(const std::vector<int>& ids) {
   std::string out;
   for (size_t i = 0; i < ids.size(); ++i) out += (i ? ", " : "") + std::to_string(ids[i]);
   return out;
+}
+
+Eigen::Vector3d StdDevs(const Eigen::Matrix3d& cov) {
+  return cov.diagonal().cwiseMax(0.0).cwiseSqrt();
 }
 
 nlohmann::ordered_json VectorJson(const Eigen::Vector3d& v) {
@@ -33,8 +34,16 @@ nlohmann::ordered_json MatrixJson(const Eigen::Matrix3d& m) {
   return rows;
 }
 
-Eigen::Vector3d StdDevs(const Eigen::Matrix3d& cov) {
-  return cov.diagonal().cwiseMax(0.0).cwiseSqrt();
+// "A found (118 points); B ambiguous: ..." for error messages.
+std::string IdentificationBrief(const IdentifyResult& identification) {
+  std::string out;
+  for (const IdentifiedSource& s : identification.sources) {
+    out += (out.empty() ? "" : "; ") + s.name + " " + IdentifyOutcomeName(s.outcome) +
+           (s.outcome == IdentifyOutcome::kFound
+                ? " (" + std::to_string(s.assigned) + " points)"
+                : (s.detail.empty() ? std::string() : ": " + s.detail));
+  }
+  return out;
 }
 
 }  // namespace
@@ -42,16 +51,30 @@ Eigen::Vector3d StdDevs(const Eigen::Matrix3d& cov) {
 Status MeasureOptions::Validate() const {
   Status st = locate.Validate();
   if (!st.ok()) return Status::InvalidArgument("locate options: " + st.message());
+  st = identify.Validate();
+  if (!st.ok()) return Status::InvalidArgument("identify options: " + st.message());
   return Status::Ok();
 }
 
 Result<MeasureReport> MeasureScale(const ModuleCalibration& calibration,
-                                   const std::vector<Spot>& spots,
+                                   const std::vector<Spot>& input_spots,
                                    const MeasureOptions& options) {
   OPL_RETURN_IF_ERROR(options.Validate());
   if (Status st = calibration.Validate(); !st.ok()) {
     return Status::InvalidArgument("module calibration: " + st.message());
   }
+  // Unassigned spots: identify them first; the rest uses what was assigned.
+  std::optional<IdentifyResult> identification;
+  std::vector<Spot> identified;
+  const bool identify = std::any_of(input_spots.begin(), input_spots.end(),
+                                    [](const Spot& spot) { return !spot.assigned(); });
+  if (identify) {
+    Result<IdentifyResult> result = IdentifySpots(calibration, input_spots, options.identify);
+    if (!result.ok()) return result.status();
+    identified = AssignedSpots(input_spots, *result);
+    identification = std::move(*result);
+  }
+  const std::vector<Spot>& spots = identify ? identified : input_spots;
   std::string known_sources;
   for (const SourceCalibration& s : calibration.sources) {
     known_sources += (known_sources.empty() ? "" : ", ") + s.name;
@@ -92,6 +115,9 @@ Result<MeasureReport> MeasureScale(const ModuleCalibration& calibration,
   }
 
   MeasureReport report;
+  report.identification = identification;
+  const std::string identified_suffix =
+      identification ? " (identification: " + IdentificationBrief(*identification) + ")" : "";
   std::vector<LocatedOrigin> located;
   for (const SourceCalibration& source : calibration.sources) {
     auto group = by_source.find(source.name);
@@ -101,8 +127,9 @@ Result<MeasureReport> MeasureScale(const ModuleCalibration& calibration,
     }
     Result<LocateResult> result = LocateSource(source.pattern, group->second, options.locate);
     if (!result.ok()) {
-      return Status(result.status().code(),
-                    "source '" + source.name + "': " + result.status().message());
+      return Status(result.status().code(), "source '" + source.name +
+                                                "': " + result.status().message() +
+                                                identified_suffix);
     }
     LocatedOrigin origin;
     origin.name = source.name;
@@ -111,7 +138,9 @@ Result<MeasureReport> MeasureScale(const ModuleCalibration& calibration,
     located.push_back(origin);
     report.sources.emplace_back(source.name, std::move(result).value());
   }
-  if (located.empty()) return Status::NoSolution("no spots: no source could be located");
+  if (located.empty()) {
+    return Status::NoSolution("no spots: no source could be located" + identified_suffix);
+  }
 
   Result<ScaleResult> scale = ComputeScaleFactor(calibration, located);
   if (!scale.ok()) {
@@ -119,8 +148,8 @@ Result<MeasureReport> MeasureScale(const ModuleCalibration& calibration,
     for (const LocatedOrigin& o : located) {
       located_names += (located_names.empty() ? "" : ", ") + o.name;
     }
-    return Status(scale.status().code(),
-                  scale.status().message() + " (located: " + located_names + ")");
+    return Status(scale.status().code(), scale.status().message() + " (located: " +
+                                             located_names + ")" + identified_suffix);
   }
   report.scale = std::move(scale).value();
   return report;
@@ -128,17 +157,32 @@ Result<MeasureReport> MeasureScale(const ModuleCalibration& calibration,
 
 std::string MeasureReport::ToText() const {
   std::string out;
+  if (identification) {
+    out += "Identification: " + std::to_string(identification->num_assigned()) + " of " +
+           std::to_string(identification->source_index.size()) + " points assigned, " +
+           std::to_string(identification->num_unassigned()) + " unassigned\n";
+    for (const IdentifiedSource& s : identification->sources) {
+      out += "  " + s.name + ": " + IdentifyOutcomeName(s.outcome);
+      if (s.outcome == IdentifyOutcome::kFound) {
+        out += ", " + std::to_string(s.assigned) + " points, rms " +
+               FormatPrintf("%.1f", s.rms_residual_rad * 1e6) + " urad";
+      } else if (!s.detail.empty()) {
+        out += ": " + s.detail;
+      }
+      out += "\n";
+    }
+  }
   for (const auto& [name, r] : sources) {
     const std::vector<int> outliers = r.OutlierBeamIds();
     out += "Source " + name + ": " + std::to_string(r.num_spots) + " spots, " +
            std::to_string(r.num_inliers) + " used, " + std::to_string(outliers.size()) +
            " outliers" + (outliers.empty() ? "" : " (beams " + JoinInts(outliers) + ")") + "\n";
-    out += "  origin          " + Triple("%.6f", r.scene_from_source.translation) +
+    out += "  origin          " + FormatTriple("%.6f", r.scene_from_source.translation) +
            " scene units\n";
-    out += "  origin std dev  " + Triple("%.6f", StdDevs(r.origin_covariance)) + " scene units\n";
-    out += "  rotation x,y,z  " + Triple("%.6f", r.rotation_xyz_rad * kRadToDeg) +
+    out += "  origin std dev  " + FormatTriple("%.6f", StdDevs(r.origin_covariance)) + " scene units\n";
+    out += "  rotation x,y,z  " + FormatTriple("%.6f", r.rotation_xyz_rad * kRadToDeg) +
            " deg (R = Rx Ry Rz), std dev " +
-           Triple("%.6f", StdDevs(r.rotation_xyz_covariance) * kRadToDeg) + " deg\n";
+           FormatTriple("%.6f", StdDevs(r.rotation_xyz_covariance) * kRadToDeg) + " deg\n";
     out += "  rms residual    " + FormatPrintf("%.3f", r.rms_residual_rad * 1e6) + " urad" +
            (r.weighted ? ", chi2/dof " + FormatPrintf("%.3f", r.variance_factor) +
                              " (weighted by spot sigmas)"
@@ -198,6 +242,22 @@ std::string MeasureReport::ToJson() const {
   }
   doc["sources"] = std::move(source_array);
   doc["sources_without_spots"] = sources_without_spots;
+  if (identification) {
+    ordered_json id;
+    id["points"] = identification->source_index.size();
+    id["assigned"] = identification->num_assigned();
+    id["unassigned"] = identification->num_unassigned();
+    ordered_json id_sources = ordered_json::array();
+    for (const IdentifiedSource& s : identification->sources) {
+      id_sources.push_back({{"name", s.name},
+                            {"outcome", IdentifyOutcomeName(s.outcome)},
+                            {"detail", s.detail},
+                            {"assigned", s.assigned},
+                            {"rms_residual_urad", s.rms_residual_rad * 1e6}});
+    }
+    id["sources"] = std::move(id_sources);
+    doc["identification"] = std::move(id);
+  }
   ordered_json lengths = ordered_json::array();
   for (const LengthScale& l : scale.lengths) {
     lengths.push_back({{"from", l.from},

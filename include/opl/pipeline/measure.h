@@ -9,7 +9,11 @@
 //   std::cout << report->ToText();      // or ToJson()
 //   // every scene coordinate times report->scale.scale_factor is in mm
 //
-// Steps: every spot is checked against the calibration (its source must exist,
+// Steps: when any spot is unassigned (empty source or beam: a point set as
+// photogrammetry exports it), the spots are first identified against the
+// calibrated patterns (IdentifySpots, identify_spots.h): found sources get
+// their points, an ambiguous or unfound source is not located (and says
+// why), points left unassigned are not used. Then every spot is checked against the calibration (its source must exist,
 // its beam must be in that source's pattern, no (source, beam) pair twice);
 // every source with spots is located (LocateSource); the scale factor is
 // computed from the calibrated separations between located sources
@@ -21,11 +25,13 @@
 // used); calibrated lengths are mm; the scale factor is mm per scene unit.
 #pragma once
 
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include "opl/core/status.h"
+#include "opl/identify/identify_spots.h"
 #include "opl/locate/locate_source.h"
 #include "opl/model/module_calibration.h"
 #include "opl/model/spot.h"
@@ -37,9 +43,11 @@ struct MeasureOptions {
   // Options of every source's locate (LocateSource); defaults as documented
   // there.
   LocateOptions locate;
+  // Options of the identification of unassigned spots (IdentifySpots).
+  IdentifyOptions identify;
 
-  // Checks every field (delegates to LocateOptions::Validate); the message
-  // names the field.
+  // Checks every field (delegates to LocateOptions::Validate and
+  // IdentifyOptions::Validate); the message names the field.
   Status Validate() const;
 };
 
@@ -48,6 +56,10 @@ struct MeasureReport {
   std::vector<std::pair<std::string, LocateResult>> sources;
   // Calibrated sources that had no spot (not located).
   std::vector<std::string> sources_without_spots;
+  // When spots had to be identified: what IdentifySpots found (per source
+  // outcome, per point assignment). Sources it did not find or found
+  // ambiguous are in sources_without_spots too.
+  std::optional<IdentifyResult> identification;
   ScaleResult scale;
 
   // A readable summary: per source the origin (scene units), rotation angles
@@ -62,13 +74,15 @@ struct MeasureReport {
 };
 
 // Errors:
-//  - InvalidArgument: invalid options or calibration; a spot naming a source
+//  - InvalidArgument: invalid options or calibration; from IdentifySpots; a spot naming a source
 //    not in the calibration ("spots.csv:14: unknown source 'C' (calibration
 //    has A, B)"); the same (source, beam) twice (names both lines); a beam id
 //    the source's pattern lacks; a non-finite spot;
 //  - NoSolution: a source whose spots do not determine its pose (too few,
 //    degenerate; "source 'A': " + LocateSource's message), or no calibrated
-//    separation joins two located sources.
+//    separation joins two located sources (after an identification, the
+//    message ends with what it found: "identification: A found (118 points);
+//    B ambiguous: ...").
 Result<MeasureReport> MeasureScale(const ModuleCalibration& calibration,
                                    const std::vector<Spot>& spots,
                                    const MeasureOptions& options = MeasureOptions());

@@ -1,0 +1,1108 @@
+#include "opl/identify/identify_spots.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <sstream>
+
+#include <Eigen/LU>
+
+#include "opl/core/format.h"
+#include "opl/geometry/rotation.h"
+#include "opl/locate/locate_source.h"
+#include "opl/locate/p3p.h"
+
+namespace opl {
+namespace {
+
+// The 8 symmetries of the square lattice, g = [[a, b], [c, d]] acting on
+// (col, row) offsets: (a x + b y, c x + d y). The first four are rolls
+// (0, 90, 180, 270 deg), the last four mirrors.
+constexpr std::array<std::array<int, 4>, 8> kSymmetries = {{{1, 0, 0, 1},
+                                                             {0, -1, 1, 0},
+                                                             {-1, 0, 0, -1},
+                                                             {0, 1, -1, 0},
+                                                             {1, 0, 0, -1},
+                                                             {-1, 0, 0, 1},
+                                                             {0, 1, 1, 0},
+                                                             {0, -1, -1, 0}}};
+
+inline Eigen::Vector2i Apply(int g, const Eigen::Vector2i& o) {
+  const auto& m = kSymmetries[g];
+  return Eigen::Vector2i(m[0] * o.x() + m[1] * o.y(), m[2] * o.x() + m[3] * o.y());
+}
+
+// A pattern's lattice, and an affine model of it that extrapolates beyond the
+// pattern: model coordinates c(q) = (atan(y/x), atan(z/x)) (exact for the
+// equal-angle model) or (y, z) / |q| (direction cosines, exact for a
+// grating), c = c0 + M (col, row). Whichever fits the beams better is used.
+struct PatternIndex {
+  const BeamPattern* pattern = nullptr;
+  int n = 0;
+  std::vector<char> exists;             // by node = id - 1 = row * n + col
+  std::vector<Eigen::Vector3d> dir;     // by node, unit, source frame
+  bool cosines = false;
+  Eigen::Vector2d c0 = Eigen::Vector2d::Zero();
+  Eigen::Matrix2d Minv = Eigen::Matrix2d::Identity();
+  double spacing_rad = 0.0;  // median angle between lattice neighbours
+  Eigen::Vector2i ref = Eigen::Vector2i::Zero();  // reference node (col, row) with +col, +row neighbours
+
+  bool Has(int col, int row) const {
+    return col >= 0 && row >= 0 && col < n && row < n && exists[row * n + col];
+  }
+  int Id(int col, int row) const { return row * n + col + 1; }
+  const Eigen::Vector3d& Dir(int col, int row) const { return dir[row * n + col]; }
+
+  static Eigen::Vector2d Coords(bool cos_model, const Eigen::Vector3d& q) {
+    if (cos_model) return Eigen::Vector2d(q.y(), q.z()) / q.norm();
+    return Eigen::Vector2d(std::atan2(q.y(), q.x()), std::atan2(q.z(), q.x()));
+  }
+  // Continuous (col, row) of a direction with q.x() > 0.
+  Eigen::Vector2d Lattice(const Eigen::Vector3d& q) const { return Minv * (Coords(cosines, q) - c0); }
+
+  // Nearest beam to the direction of q (q.x() > 0) among the 3 x 3 nodes
+  // around its lattice position; returns the node index (-1 when none) and
+  // the angle (chord of unit vectors, ~ the angle for small angles).
+  int Nearest(const Eigen::Vector3d& q, double* angle) const {
+    const Eigen::Vector3d u = q.normalized();
+    const Eigen::Vector2d l = Lattice(q);
+    if (!(std::abs(l.x()) < 1e6 && std::abs(l.y()) < 1e6)) return -1;
+    const int c0i = static_cast<int>(std::lround(l.x())), r0i = static_cast<int>(std::lround(l.y()));
+    int best = -1;
+    double best_d2 = std::numeric_limits<double>::infinity();
+    for (int r = r0i - 1; r <= r0i + 1; ++r) {
+      for (int c = c0i - 1; c <= c0i + 1; ++c) {
+        if (!Has(c, r)) continue;
+        const double d2 = (u - Dir(c, r)).squaredNorm();
+        if (d2 < best_d2) {
+          best_d2 = d2;
+          best = r * n + c;
+        }
+      }
+    }
+    *angle = std::sqrt(best_d2);
+    return best;
+  }
+};
+
+PatternIndex BuildIndex(const BeamPattern& pattern) {
+  PatternIndex index;
+  index.pattern = &pattern;
+  const int n = pattern.beams_per_side();
+  index.n = n;
+  index.exists.assign(static_cast<size_t>(n) * n, 0);
+  index.dir.assign(static_cast<size_t>(n) * n, Eigen::Vector3d::UnitX());
+  for (const Beam& b : pattern.beams()) {
+    index.exists[b.id - 1] = 1;
+    index.dir[b.id - 1] = pattern.DirectionInSource(b.id);
+  }
+  // Affine fits of both models; keep the one with the smaller worst residual
+  // (in lattice steps).
+  double best_worst = std::numeric_limits<double>::infinity();
+  for (int model = 0; model < 2; ++model) {
+    const bool cos_model = model == 1;
+    const int m = static_cast<int>(pattern.beams().size());
+    Eigen::MatrixXd A(m, 3);
+    Eigen::MatrixXd B(m, 2);
+    for (int i = 0; i < m; ++i) {
+      const Beam& b = pattern.beams()[i];
+      A(i, 0) = 1.0;
+      A(i, 1) = BeamCol(b.id, n);
+      A(i, 2) = BeamRow(b.id, n);
+      B.row(i) = PatternIndex::Coords(cos_model, index.dir[b.id - 1]).transpose();
+    }
+    const Eigen::MatrixXd X = (A.transpose() * A).ldlt().solve(A.transpose() * B);  // 3 x 2
+    Eigen::Matrix2d M;
+    M << X(1, 0), X(2, 0), X(1, 1), X(2, 1);
+    if (!(std::abs(M.determinant()) > 0.0) || !X.allFinite()) continue;
+    const Eigen::Matrix2d Minv = M.inverse();
+    const Eigen::Vector2d c0(X(0, 0), X(0, 1));
+    double worst = 0.0;
+    for (int i = 0; i < m; ++i) {
+      const Eigen::Vector2d l = Minv * (B.row(i).transpose() - c0);
+      worst = std::max(worst, (l - A.row(i).tail<2>().transpose()).cwiseAbs().maxCoeff());
+    }
+    if (worst < best_worst) {
+      best_worst = worst;
+      index.cosines = cos_model;
+      index.c0 = c0;
+      index.Minv = Minv;
+    }
+  }
+  // Spacing: median angle between lattice neighbours.
+  std::vector<double> angles;
+  for (int r = 0; r < n; ++r) {
+    for (int c = 0; c < n; ++c) {
+      if (!index.Has(c, r)) continue;
+      if (index.Has(c + 1, r)) angles.push_back((index.Dir(c, r) - index.Dir(c + 1, r)).norm());
+      if (index.Has(c, r + 1)) angles.push_back((index.Dir(c, r) - index.Dir(c, r + 1)).norm());
+    }
+  }
+  if (!angles.empty()) {
+    std::nth_element(angles.begin(), angles.begin() + angles.size() / 2, angles.end());
+    index.spacing_rad = angles[angles.size() / 2];
+  }
+  // Reference node: the one nearest the centre with both +col and +row
+  // neighbours.
+  const int m = (n - 1) / 2;
+  int best_d = std::numeric_limits<int>::max();
+  for (int r = 0; r < n; ++r) {
+    for (int c = 0; c < n; ++c) {
+      if (!index.Has(c, r) || !index.Has(c + 1, r) || !index.Has(c, r + 1)) continue;
+      const int d = std::abs(c - m) + std::abs(r - m);
+      if (d < best_d) {
+        best_d = d;
+        index.ref = Eigen::Vector2i(c, r);
+      }
+    }
+  }
+  if (best_d == std::numeric_limits<int>::max()) index.spacing_rad = 0.0;  // no usable lattice
+  return index;
+}
+
+// The points to identify.
+struct Pool {
+  std::vector<Eigen::Vector3d> p;   // scene
+  std::vector<int> spot;            // input index
+  std::vector<int> only_source;     // -1: any source
+  std::vector<char> taken;          // assigned to a found source
+  std::vector<char> blocked;        // not to be used as a seed point any more
+  int size() const { return static_cast<int>(p.size()); }
+};
+
+struct Seed {
+  int p0 = 0, pa = 0, pb = 0;
+  double quality = 0.0;  // smaller is better
+  // The seed's lattice patch: points and their (col, row) offsets from p0
+  // along (a, b): p0, p0 +- a, p0 +- b and the supported p0 +- a +- b,
+  // p0 +- 2a, p0 +- 2b.
+  std::vector<std::pair<int, Eigen::Vector2i>> patch;
+};
+
+// Seeds: points with two pairs of opposite neighbours (a local lattice cross).
+std::vector<Seed> FindSeeds(const Pool& pool, int k) {
+  const int n = pool.size();
+  std::vector<Seed> seeds;
+  if (n < 5) return seeds;
+  k = std::min(k, n - 1);
+  std::vector<std::pair<double, int>> dist(n);
+  std::vector<int> nb(k);
+  struct Axis {
+    int plus, minus;
+    Eigen::Vector3d a;
+    double err;
+  };
+  std::vector<Axis> axes;
+  for (int i = 0; i < n; ++i) {
+    for (int j = 0; j < n; ++j) dist[j] = {j == i ? std::numeric_limits<double>::infinity()
+                                                  : (pool.p[j] - pool.p[i]).squaredNorm(),
+                                           j};
+    std::partial_sort(dist.begin(), dist.begin() + k, dist.end());
+    for (int j = 0; j < k; ++j) nb[j] = dist[j].second;
+    axes.clear();
+    for (int a = 0; a < k; ++a) {
+      const Eigen::Vector3d va = pool.p[nb[a]] - pool.p[i];
+      const double la = va.norm();
+      for (int b = a + 1; b < k; ++b) {
+        const Eigen::Vector3d vb = pool.p[nb[b]] - pool.p[i];
+        const double lb = vb.norm();
+        const double lmax = std::max(la, lb);
+        if (std::min(la, lb) < 0.5 * lmax) continue;
+        const double err = (va + vb).norm() / lmax;
+        if (err > 0.35) continue;
+        axes.push_back({nb[a], nb[b], 0.5 * (va - vb), err});
+      }
+    }
+    double best = std::numeric_limits<double>::infinity();
+    Seed seed;
+    for (size_t a = 0; a < axes.size(); ++a) {
+      for (size_t b = a + 1; b < axes.size(); ++b) {
+        const double na = axes[a].a.norm(), nbn = axes[b].a.norm();
+        const double c = axes[a].a.dot(axes[b].a) / (na * nbn);
+        if (std::abs(c) > 0.8) continue;
+        // Lattice support: how many of the 8 further nodes p0 +- a +- b,
+        // p0 +- 2a, p0 +- 2b hold a point (within 20% of the shorter step).
+        const Eigen::Vector3d& va = axes[a].a;
+        const Eigen::Vector3d& vb = axes[b].a;
+        const std::array<Eigen::Vector3d, 8> predicted = {va + vb, va - vb, -va + vb, -va - vb,
+                                                          2.0 * va, -2.0 * va, 2.0 * vb, -2.0 * vb};
+        const double tol2 = 0.04 * std::min(na, nbn) * std::min(na, nbn);
+        static const std::array<Eigen::Vector2i, 8> kOffsets = {
+            Eigen::Vector2i(1, 1),  Eigen::Vector2i(1, -1), Eigen::Vector2i(-1, 1), Eigen::Vector2i(-1, -1),
+            Eigen::Vector2i(2, 0),  Eigen::Vector2i(-2, 0), Eigen::Vector2i(0, 2),  Eigen::Vector2i(0, -2)};
+        int support = 0;
+        std::vector<std::pair<int, Eigen::Vector2i>> patch = {
+            {i, Eigen::Vector2i(0, 0)}, {axes[a].plus, Eigen::Vector2i(1, 0)}, {axes[a].minus, Eigen::Vector2i(-1, 0)},
+            {axes[b].plus, Eigen::Vector2i(0, 1)}, {axes[b].minus, Eigen::Vector2i(0, -1)}};
+        for (int o = 0; o < 8; ++o) {
+          const Eigen::Vector3d target = pool.p[i] + predicted[o];
+          for (int j = 0; j < k; ++j) {
+            if ((pool.p[nb[j]] - target).squaredNorm() < tol2) {
+              ++support;
+              patch.push_back({nb[j], kOffsets[o]});
+              break;
+            }
+          }
+        }
+        // Prefer crosses with the most lattice support, then short and
+        // regular ones (the true lattice steps are the shortest axes).
+        const double q = -support + 0.5 * (na + nbn) / std::sqrt(dist[0].first) * (1.0 + axes[a].err + axes[b].err);
+        if (q < best) {
+          best = q;
+          seed = {i, axes[a].plus, axes[b].plus, q, patch};
+        }
+      }
+    }
+    if (std::isfinite(best)) seeds.push_back(seed);
+  }
+  std::stable_sort(seeds.begin(), seeds.end(),
+                   [](const Seed& a, const Seed& b) { return a.quality < b.quality; });
+  return seeds;
+}
+
+// One refined explanation of some points by one source.
+struct Detection {
+  int source = -1;
+  Rigid3d scene_from_source;
+  double sigma = 0.0;  // robust per-component angular noise, rad
+  std::vector<int> point;   // pool indices
+  std::vector<int> beam;    // beam ids, parallel
+  std::vector<double> residual;  // angles, rad, parallel
+  double cost = 0.0;        // truncated chi^2 over the pool (set by the caller)
+  int conflicts = 0;
+};
+
+struct Candidate {
+  int source = -1;
+  PoseRt pose;  // source_from_scene
+  int score = 0;
+  // Lattice node (col, row) of the seed point; refinement grows from it when
+  // `grow` (a pose from three neighbouring spots is right only near them).
+  Eigen::Vector2i node = Eigen::Vector2i::Zero();
+  bool grow = false;
+};
+
+class Identifier {
+ public:
+  Identifier(const ModuleCalibration& calibration, const IdentifyOptions& options, Pool* pool,
+             const std::vector<std::vector<char>>& beam_reserved)
+      : calibration_(calibration), options_(options), pool_(*pool), reserved_(beam_reserved) {
+    for (const SourceCalibration& s : calibration.sources) index_.push_back(BuildIndex(s.pattern));
+  }
+
+  const PatternIndex& index(int s) const { return index_[s]; }
+
+  bool Eligible(int i, int s) const {
+    return !pool_.taken[i] && (pool_.only_source[i] < 0 || pool_.only_source[i] == s);
+  }
+
+  // Candidate poses of source s from a seed (header comment, step 2).
+  void Candidates(int s, const Seed& seed, std::vector<Candidate>* out) const {
+    const PatternIndex& idx = index_[s];
+    if (idx.spacing_rad <= 0.0) return;
+    const int n = idx.n;
+    const std::array<Eigen::Vector3d, 3> X = {pool_.p[seed.p0], pool_.p[seed.pa], pool_.p[seed.pb]};
+    const Eigen::Vector2i L = idx.ref;
+    const std::array<Eigen::Vector3d, 3> f = {idx.Dir(L.x(), L.y()), idx.Dir(L.x() + 1, L.y()),
+                                              idx.Dir(L.x(), L.y() + 1)};
+    std::array<PoseRt, 4> roots;
+    int num_roots = 0;
+    if (PatchPose(s, seed, L, 0, &roots[0])) {
+      num_roots = 1;
+    } else {
+      num_roots = SolveP3P(f, X, &roots);
+    }
+    struct Hist {
+      int root, g;
+      Eigen::Vector2i L0;
+      int count;
+    };
+    std::vector<Hist> hist;
+    std::vector<Eigen::Vector2i> offsets;
+    std::vector<int> diff(static_cast<size_t>(n + 1) * (n + 1));
+    for (int root = 0; root < num_roots; ++root) {
+      const PoseRt& P = roots[root];
+      if (!P.R.allFinite() || !P.t.allFinite()) continue;
+      offsets.clear();
+      for (int i = 0; i < pool_.size(); ++i) {
+        if (!Eligible(i, s)) continue;
+        const Eigen::Vector3d q = P.R * pool_.p[i] + P.t;
+        if (!(q.x() > 0.0)) continue;
+        const Eigen::Vector2d d = idx.Lattice(q) - L.cast<double>();
+        const Eigen::Vector2d rd = d.array().round();
+        if ((d - rd).cwiseAbs().maxCoeff() > 0.3 || rd.cwiseAbs().maxCoeff() > 2 * n) continue;
+        offsets.push_back(rd.cast<int>());
+      }
+      for (int g = 0; g < 8; ++g) {
+        std::fill(diff.begin(), diff.end(), 0);
+        for (const Eigen::Vector2i& o : offsets) {
+          const Eigen::Vector2i go = Apply(g, o);
+          const int c_lo = std::max(0, -go.x()), c_hi = std::min(n - 1, n - 1 - go.x());
+          const int r_lo = std::max(0, -go.y()), r_hi = std::min(n - 1, n - 1 - go.y());
+          if (c_lo > c_hi || r_lo > r_hi) continue;
+          diff[r_lo * (n + 1) + c_lo] += 1;
+          diff[r_lo * (n + 1) + c_hi + 1] -= 1;
+          diff[(r_hi + 1) * (n + 1) + c_lo] -= 1;
+          diff[(r_hi + 1) * (n + 1) + c_hi + 1] += 1;
+        }
+        // Prefix sums in place; count at (c, r) = inclusive sum.
+        for (int r = 0; r < n; ++r) {
+          for (int c = 0; c < n; ++c) {
+            int v = diff[r * (n + 1) + c];
+            if (r > 0) v += diff[(r - 1) * (n + 1) + c];
+            if (c > 0) v += diff[r * (n + 1) + c - 1];
+            if (r > 0 && c > 0) v -= diff[(r - 1) * (n + 1) + c - 1];
+            diff[r * (n + 1) + c] = v;
+          }
+        }
+        // The best nodes of this (root, g): up to 6.
+        std::array<Hist, 6> top;
+        for (auto& t : top) t.count = -1;
+        for (int r = 0; r < n; ++r) {
+          for (int c = 0; c < n; ++c) {
+            const int v = diff[r * (n + 1) + c];
+            if (v <= top[5].count) continue;
+            if (!idx.Has(c, r)) continue;
+            Hist h{root, g, Eigen::Vector2i(c, r), v};
+            int k = 5;
+            while (k > 0 && top[k - 1].count < v) {
+              top[k] = top[k - 1];
+              --k;
+            }
+            top[k] = h;
+          }
+        }
+        for (const auto& t : top) {
+          if (t.count >= options_.min_spots) hist.push_back(t);
+        }
+      }
+    }
+    if (hist.empty()) return;
+    std::stable_sort(hist.begin(), hist.end(), [](const Hist& a, const Hist& b) { return a.count > b.count; });
+    const int max_count = hist.front().count;
+    const double gate = options_.score_gate_fraction * idx.spacing_rad +
+                        (options_.directions_nominal ? options_.nominal_tolerance_rad : 0.0);
+    int checked = 0;
+    std::vector<std::pair<Eigen::Vector2i, int>> seen;  // (L0, g) verified
+    for (const Hist& h : hist) {
+      if (h.count < 0.5 * max_count || checked >= 48) break;
+      bool dup = false;
+      for (const auto& sv : seen) dup |= (sv.first == h.L0 && sv.second == h.g);
+      if (dup) continue;
+      seen.push_back({h.L0, h.g});
+      const Eigen::Vector2i e1 = Apply(h.g, Eigen::Vector2i(1, 0)), e2 = Apply(h.g, Eigen::Vector2i(0, 1));
+      const Eigen::Vector2i A = h.L0 + e1, B = h.L0 + e2;
+      if (!idx.Has(A.x(), A.y()) || !idx.Has(B.x(), B.y())) continue;
+      ++checked;
+      const std::array<Eigen::Vector3d, 3> fb = {idx.Dir(h.L0.x(), h.L0.y()), idx.Dir(A.x(), A.y()),
+                                                 idx.Dir(B.x(), B.y())};
+      std::array<PoseRt, 4> poses;
+      int np = 0;
+      if (PatchPose(s, seed, h.L0, h.g, &poses[0])) {
+        np = 1;
+      } else {
+        np = SolveP3P(fb, X, &poses);
+      }
+      for (int k = 0; k < np; ++k) {
+        if (!poses[k].R.allFinite() || !poses[k].t.allFinite()) continue;
+        const int score = Score(s, poses[k], gate);
+        if (score >= options_.min_spots) out->push_back({s, poses[k], score, h.L0, true});
+      }
+    }
+  }
+
+  // The pose of source s that maps the seed's patch onto the beams
+  // L0 + g offset (LocateSource over the patch); false when it fails.
+  bool PatchPose(int s, const Seed& seed, const Eigen::Vector2i& L0, int g, PoseRt* pose) const {
+    const PatternIndex& idx = index_[s];
+    std::vector<SpotObservation> obs;
+    for (const auto& [i, o] : seed.patch) {
+      const Eigen::Vector2i l = L0 + Apply(g, o);
+      if (!idx.Has(l.x(), l.y()) || !Eligible(i, s)) continue;
+      SpotObservation so;
+      so.beam_id = idx.Id(l.x(), l.y());
+      so.point_in_scene = pool_.p[i];
+      obs.push_back(so);
+    }
+    if (obs.size() < 6) return false;
+    LocateOptions lo;
+    lo.ransac_seed = options_.seed;
+    // The patch's points are nearly all inliers when the hypothesis is
+    // right: a few minimal samples suffice; a wrong one fails fast.
+    lo.ransac_max_iterations = 20;
+    lo.ransac_inlier_threshold_rad = 0.05 * idx.spacing_rad;
+    auto located = LocateSource(*idx.pattern, obs, lo);
+    if (!located.ok()) return false;
+    const Eigen::Matrix3d R = located->scene_from_source.RotationMatrix();
+    pose->R = R.transpose();
+    pose->t = -(R.transpose() * located->scene_from_source.translation);
+    return true;
+  }
+
+  // Points of source s whose nearest beam under `pose` is within `gate`.
+  int Score(int s, const PoseRt& pose, double gate) const {
+    const PatternIndex& idx = index_[s];
+    int count = 0;
+    for (int i = 0; i < pool_.size(); ++i) {
+      if (!Eligible(i, s)) continue;
+      const Eigen::Vector3d q = pose.R * pool_.p[i] + pose.t;
+      if (!(q.x() > 0.0)) continue;
+      double angle;
+      if (idx.Nearest(q, &angle) >= 0 && angle < gate) ++count;
+    }
+    return count;
+  }
+
+  // Assigns points to beams of source s under scene_from_source within
+  // `gate`; conflicts (two points in one beam's gate) resolved by the chi^2
+  // margin when sigma > 0, else by the nearest.
+  Detection Assign(int s, const Rigid3d& scene_from_source, double gate, double sigma,
+                   const Eigen::Vector2i& centre = Eigen::Vector2i::Zero(), int radius = 1 << 20) const {
+    const PatternIndex& idx = index_[s];
+    const Eigen::Matrix3d Rt = scene_from_source.RotationMatrix().transpose();
+    const Eigen::Vector3d t = scene_from_source.translation;
+    const int nn = idx.n * idx.n;
+    std::vector<int> best(nn, -1), second(nn, -1);
+    std::vector<double> best_a(nn, 0.0), second_a(nn, 0.0);
+    for (int i = 0; i < pool_.size(); ++i) {
+      if (!Eligible(i, s)) continue;
+      const Eigen::Vector3d q = Rt * (pool_.p[i] - t);
+      if (!(q.x() > 0.0)) continue;
+      double angle;
+      const int node = idx.Nearest(q, &angle);
+      if (node < 0 || !(angle < gate) || reserved_[s][node]) continue;
+      if (std::abs(node % idx.n - centre.x()) > radius || std::abs(node / idx.n - centre.y()) > radius) continue;
+      if (best[node] < 0 || angle < best_a[node]) {
+        second[node] = best[node];
+        second_a[node] = best_a[node];
+        best[node] = i;
+        best_a[node] = angle;
+      } else if (second[node] < 0 || angle < second_a[node]) {
+        second[node] = i;
+        second_a[node] = angle;
+      }
+    }
+    Detection d;
+    d.source = s;
+    d.scene_from_source = scene_from_source;
+    d.sigma = sigma;
+    for (int node = 0; node < nn; ++node) {
+      if (best[node] < 0) continue;
+      if (second[node] >= 0 && sigma > 0.0) {
+        const double margin = (second_a[node] * second_a[node] - best_a[node] * best_a[node]) / (sigma * sigma);
+        if (margin < options_.conflict_margin_chi2) {
+          ++d.conflicts;
+          continue;
+        }
+      }
+      d.point.push_back(best[node]);
+      d.beam.push_back(node + 1);
+      d.residual.push_back(best_a[node]);
+    }
+    return d;
+  }
+
+  // Largest noise sigma of an accepted detection of source s, rad.
+  double MaxSigma(int s) const {
+    return options_.max_sigma_fraction * index_[s].spacing_rad +
+           (options_.directions_nominal ? options_.nominal_tolerance_rad : 0.0);
+  }
+
+  // Fewest points a detection of source s must explain.
+  int MinPoints(int s) const {
+    const int beams = static_cast<int>(index_[s].pattern->beams().size());
+    return std::max(options_.min_spots, static_cast<int>(std::ceil(options_.min_fraction * beams)));
+  }
+
+  double Gate(double sigma, double cap) const {
+    double g = options_.assign_gate_sigma * sigma;
+    if (options_.directions_nominal) g = std::hypot(g, options_.nominal_tolerance_rad);
+    return std::min(g, cap);
+  }
+
+  // Refines a candidate (header comment, step 3). False when the pose cannot
+  // be refined or explains too few points.
+  bool Refine(const Candidate& c, Detection* out) const {
+    const PatternIndex& idx = index_[c.source];
+    const double cap = options_.score_gate_fraction * idx.spacing_rad +
+                       (options_.directions_nominal ? options_.nominal_tolerance_rad : 0.0);
+    Rigid3d pose(Eigen::Matrix3d(c.pose.R.transpose()), Eigen::Vector3d(-(c.pose.R.transpose() * c.pose.t)));
+    double sigma = 0.0;
+    double gate = cap;
+    // Growth: the region around the seed's node widens stage by stage.
+    static constexpr int kRadii[] = {2, 3, 5, 8};
+    int stage = c.grow ? 0 : 4;
+    auto radius = [&stage]() { return stage < 4 ? kRadii[stage] : 1 << 20; };
+    Detection d = Assign(c.source, pose, gate, sigma, c.node, radius());
+    LocateOptions lo;
+    lo.ransac_seed = options_.seed;
+    // The assigned points are within `cap` of their beams under the initial
+    // pose: with that threshold the guess is taken and RANSAC never runs.
+    lo.ransac_inlier_threshold_rad = std::min(0.4, 1.01 * cap);
+    lo.ransac_max_iterations = 100;
+    const double max_sigma = options_.max_sigma_fraction * idx.spacing_rad +
+                             (options_.directions_nominal ? options_.nominal_tolerance_rad : 0.0);
+    // The gate shrinks from `cap` by halves to the noise gate, so that a pose
+    // right only near the seed grows onto the whole grid.
+    double schedule = cap;
+    for (int iter = 0; iter < 16; ++iter) {
+      if (static_cast<int>(d.point.size()) < (stage < 4 ? 6 : std::max(4, options_.min_spots))) return false;
+      std::vector<SpotObservation> obs(d.point.size());
+      for (size_t k = 0; k < d.point.size(); ++k) {
+        obs[k].beam_id = d.beam[k];
+        obs[k].point_in_scene = pool_.p[d.point[k]];
+      }
+      lo.initial_scene_from_source = pose;
+      auto located = LocateSource(*idx.pattern, obs, lo);
+      if (!located.ok()) return false;
+      pose = located->scene_from_source;
+      // Robust sigma from the inliers' angles (Rayleigh median = 1.1774 sigma).
+      std::vector<double> r;
+      const Eigen::Matrix3d Rt = pose.RotationMatrix().transpose();
+      for (size_t k = 0; k < obs.size(); ++k) {
+        if (located->residuals[k].outlier) continue;
+        const Eigen::Vector3d q = (Rt * (obs[k].point_in_scene - pose.translation)).normalized();
+        r.push_back((q - idx.pattern->DirectionInSource(obs[k].beam_id)).norm());
+      }
+      if (r.size() < 4) return false;
+      std::nth_element(r.begin(), r.begin() + r.size() / 2, r.end());
+      sigma = std::max(r[r.size() / 2] / std::sqrt(2.0 * std::log(2.0)), options_.min_sigma_rad);
+      if (sigma > 2.0 * max_sigma) return false;
+      if (stage < 4) {
+        ++stage;
+        gate = cap;
+        d = Assign(c.source, pose, gate, 0.0, c.node, radius());
+        continue;
+      }
+      schedule *= 0.5;
+      gate = std::max(Gate(sigma, cap), schedule);
+      Detection next = Assign(c.source, pose, gate, sigma);
+      const bool same = next.point == d.point && next.beam == d.beam;
+      d = std::move(next);
+      if (same && schedule <= Gate(sigma, cap)) break;
+    }
+    if (static_cast<int>(d.point.size()) < MinPoints(c.source)) return false;
+    // A pose whose spots scatter by more than a small fraction of the beam
+    // spacing is not this source's grid (another pattern, a wrong
+    // correspondence of a nearly symmetric pattern).
+    if (d.sigma > max_sigma) return false;
+    *out = std::move(d);
+    return true;
+  }
+
+  // Candidate poses for the alternatives of detection d: its points
+  // relabelled by each symmetry g of the square about the pattern centre, in
+  // each allowed source (d's own source without g = identity). The pose of
+  // each comes from P3P on three well-spread points; it is kept only when it
+  // puts at least 80% of the relabelled points within 4 max-sigma of their
+  // beams (an alternative that fits no better than that cannot rival d).
+  std::vector<Candidate> Alternatives(const Detection& d, const std::vector<char>& allowed) const {
+    std::vector<Candidate> out;
+    const int m = static_cast<int>(d.point.size());
+    if (m < 4) return out;
+    const int n0 = index_[d.source].n;
+    std::vector<Eigen::Vector2i> lattice(m);
+    for (int k = 0; k < m; ++k) lattice[k] = Eigen::Vector2i(BeamCol(d.beam[k], n0), BeamRow(d.beam[k], n0));
+    // Three well-spread points (in lattice coordinates).
+    Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+    for (const auto& l : lattice) mean += l.cast<double>();
+    mean /= m;
+    int a = 0, b = 0, c = 0;
+    double best = -1.0;
+    for (int k = 0; k < m; ++k) {
+      const double v = (lattice[k].cast<double>() - mean).squaredNorm();
+      if (v > best) best = v, a = k;
+    }
+    best = -1.0;
+    for (int k = 0; k < m; ++k) {
+      const double v = (lattice[k] - lattice[a]).cast<double>().squaredNorm();
+      if (v > best) best = v, b = k;
+    }
+    // c and c2: the largest triangles with a, b on either side of ab.
+    int c2 = 0;
+    double best2 = 0.0;
+    best = 0.0;
+    const Eigen::Vector2d ab = (lattice[b] - lattice[a]).cast<double>();
+    for (int k = 0; k < m; ++k) {
+      const Eigen::Vector2d ak = (lattice[k] - lattice[a]).cast<double>();
+      const double v = ab.x() * ak.y() - ab.y() * ak.x();
+      if (v > best) best = v, c = k;
+      if (-v > best2) best2 = -v, c2 = k;
+    }
+    if (best <= 0.0 && best2 <= 0.0) return out;
+    if (best <= 0.0) c = c2;
+    if (best2 <= 0.0) c2 = c;
+    // Three triples: a P3P configuration can be near-degenerate (the origin
+    // near the triangle's circumscribed cylinder); the best of the three is
+    // kept.
+    const std::array<std::array<int, 3>, 3> triples = {{{a, b, c}, {a, b, c2}, {c, c2, a}}};
+    for (int s = 0; s < static_cast<int>(index_.size()); ++s) {
+      if (!allowed[s]) continue;
+      const PatternIndex& idx = index_[s];
+      if (idx.spacing_rad <= 0.0) continue;
+      const double max_sigma = options_.max_sigma_fraction * idx.spacing_rad +
+                               (options_.directions_nominal ? options_.nominal_tolerance_rad : 0.0);
+      const double gate = 4.0 * max_sigma;
+      for (int g = 0; g < 8; ++g) {
+        if (s == d.source && g == 0) continue;
+        // Relabel: (c, r) -> g ((c, r) - centre0) + centre.
+        std::vector<int> node(m, -1);
+        const Eigen::Vector2i centre0((n0 - 1) / 2, (n0 - 1) / 2), centre((idx.n - 1) / 2, (idx.n - 1) / 2);
+        int valid = 0;
+        for (int k = 0; k < m; ++k) {
+          const Eigen::Vector2i l = Apply(g, lattice[k] - centre0) + centre;
+          if (idx.Has(l.x(), l.y())) node[k] = l.y() * idx.n + l.x(), ++valid;
+        }
+        if (valid < MinPoints(s) || 5 * valid < 4 * m) continue;
+        int best_count = -1;
+        PoseRt best_pose;
+        for (const auto& tri : triples) {
+          if (tri[0] == tri[2] || tri[1] == tri[2] || tri[0] == tri[1]) continue;
+          if (node[tri[0]] < 0 || node[tri[1]] < 0 || node[tri[2]] < 0) continue;
+          const std::array<Eigen::Vector3d, 3> f = {idx.dir[node[tri[0]]], idx.dir[node[tri[1]]], idx.dir[node[tri[2]]]};
+          const std::array<Eigen::Vector3d, 3> X = {pool_.p[d.point[tri[0]]], pool_.p[d.point[tri[1]]],
+                                                    pool_.p[d.point[tri[2]]]};
+          std::array<PoseRt, 4> poses;
+          const int np = SolveP3P(f, X, &poses);
+        for (int r = 0; r < np; ++r) {
+          if (!poses[r].R.allFinite() || !poses[r].t.allFinite()) continue;
+          int count = 0;
+          for (int k = 0; k < m; ++k) {
+            if (node[k] < 0) continue;
+            const Eigen::Vector3d q = poses[r].R * pool_.p[d.point[k]] + poses[r].t;
+            if (q.x() > 0.0 && (q.normalized() - idx.dir[node[k]]).norm() < gate) ++count;
+          }
+          if (count > best_count) best_count = count, best_pose = poses[r];
+        }
+        }
+        if (best_count >= MinPoints(s) && 5 * best_count >= 4 * m) {
+          out.push_back({s, best_pose, best_count, Eigen::Vector2i::Zero(), false});
+        }
+      }
+    }
+    return out;
+  }
+
+  // Angle from the direction of point p (scene) to its nearest beam of
+  // source s at `scene_from_source`; infinity when none.
+  double NearestAngle(int s, const Rigid3d& scene_from_source, const Eigen::Vector3d& p) const {
+    const Eigen::Vector3d q = scene_from_source.rotation.conjugate() * (p - scene_from_source.translation);
+    double angle = std::numeric_limits<double>::infinity();
+    if (!(q.x() > 0.0) || index_[s].Nearest(q, &angle) < 0) return std::numeric_limits<double>::infinity();
+    return angle;
+  }
+
+  double FinalGate(int s, double sigma) const {
+    return Gate(sigma, options_.score_gate_fraction * index_[s].spacing_rad +
+                           (options_.directions_nominal ? options_.nominal_tolerance_rad : 0.0));
+  }
+
+  // Truncated chi^2 of a detection's pose over every point eligible for its
+  // source, with a common sigma.
+  double Cost(const Detection& d, double sigma) const {
+    const PatternIndex& idx = index_[d.source];
+    const Eigen::Matrix3d Rt = d.scene_from_source.RotationMatrix().transpose();
+    const double G2 = options_.assign_gate_sigma * options_.assign_gate_sigma;
+    double cost = 0.0;
+    for (int i = 0; i < pool_.size(); ++i) {
+      if (pool_.taken[i]) continue;
+      double c = G2;
+      if (Eligible(i, d.source)) {
+        const Eigen::Vector3d q = Rt * (pool_.p[i] - d.scene_from_source.translation);
+        double angle = 0.0;
+        const int node = q.x() > 0.0 ? idx.Nearest(q, &angle) : -1;
+        if (node >= 0 && !reserved_[d.source][node]) c = std::min(G2, angle * angle / (sigma * sigma));
+      }
+      cost += c;
+    }
+    return cost;
+  }
+
+ private:
+  const ModuleCalibration& calibration_;
+  const IdentifyOptions& options_;
+  Pool& pool_;
+  const std::vector<std::vector<char>>& reserved_;
+  std::vector<PatternIndex> index_;
+};
+
+// True when a and b give (mostly) the same correspondence.
+bool SameCorrespondence(const Detection& a, const Detection& b) {
+  if (a.source != b.source) return false;
+  std::vector<std::pair<int, int>> pa, pb;
+  for (size_t k = 0; k < a.point.size(); ++k) pa.push_back({a.point[k], a.beam[k]});
+  for (size_t k = 0; k < b.point.size(); ++k) pb.push_back({b.point[k], b.beam[k]});
+  std::sort(pa.begin(), pa.end());
+  std::sort(pb.begin(), pb.end());
+  int same = 0, common = 0;
+  size_t i = 0, j = 0;
+  while (i < pa.size() && j < pb.size()) {
+    if (pa[i].first < pb[j].first) {
+      ++i;
+    } else if (pb[j].first < pa[i].first) {
+      ++j;
+    } else {
+      ++common;
+      same += pa[i].second == pb[j].second;
+      ++i;
+      ++j;
+    }
+  }
+  return common > 0 && 2 * same > common;
+}
+
+std::string Where(const Spot& s, size_t i) {
+  return s.where.empty() ? "spot " + std::to_string(i) : s.where;
+}
+
+}  // namespace
+
+const char* IdentifyOutcomeName(IdentifyOutcome outcome) {
+  switch (outcome) {
+    case IdentifyOutcome::kFound:
+      return "found";
+    case IdentifyOutcome::kNotFound:
+      return "not found";
+    case IdentifyOutcome::kAmbiguous:
+      return "ambiguous";
+  }
+  return "?";
+}
+
+Status IdentifyOptions::Validate() const {
+  auto bad = [](const std::string& field, double value, const std::string& rule) {
+    return Status::InvalidArgument("IdentifyOptions." + field + " = " + FormatNumber(value, 6) + ": " + rule);
+  };
+  if (!(assign_gate_sigma > 0.0 && std::isfinite(assign_gate_sigma))) {
+    return bad("assign_gate_sigma", assign_gate_sigma, "must be finite and > 0");
+  }
+  if (!(min_sigma_rad > 0.0 && min_sigma_rad < 0.1)) {
+    return bad("min_sigma_rad", min_sigma_rad, "must be in (0, 0.1)");
+  }
+  if (!(score_gate_fraction > 0.0 && score_gate_fraction <= 0.5)) {
+    return bad("score_gate_fraction", score_gate_fraction, "must be in (0, 0.5]");
+  }
+  if (!(nominal_tolerance_rad >= 0.0 && nominal_tolerance_rad < 0.1)) {
+    return bad("nominal_tolerance_rad", nominal_tolerance_rad, "must be in [0, 0.1)");
+  }
+  if (min_spots < 4) return bad("min_spots", min_spots, "must be >= 4");
+  if (!(min_fraction >= 0.0 && min_fraction <= 1.0)) return bad("min_fraction", min_fraction, "must be in [0, 1]");
+  if (!(conflict_margin_chi2 >= 0.0 && std::isfinite(conflict_margin_chi2))) {
+    return bad("conflict_margin_chi2", conflict_margin_chi2, "must be finite and >= 0");
+  }
+  if (!(ambiguity_chi2 >= 0.0 && std::isfinite(ambiguity_chi2))) {
+    return bad("ambiguity_chi2", ambiguity_chi2, "must be finite and >= 0");
+  }
+  if (neighbours < 4 || neighbours > 64) return bad("neighbours", neighbours, "must be in [4, 64]");
+  if (max_seeds < 1) return bad("max_seeds", max_seeds, "must be >= 1");
+  if (max_refined < 1) return bad("max_refined", max_refined, "must be >= 1");
+  if (!(max_sigma_fraction > 0.0 && max_sigma_fraction <= 0.5)) {
+    return bad("max_sigma_fraction", max_sigma_fraction, "must be in (0, 0.5]");
+  }
+  return Status::Ok();
+}
+
+int IdentifyResult::num_assigned() const {
+  return static_cast<int>(std::count_if(source_index.begin(), source_index.end(), [](int s) { return s >= 0; }));
+}
+
+int IdentifyResult::num_unassigned() const {
+  return static_cast<int>(source_index.size()) - num_assigned();
+}
+
+std::string IdentifyResult::ToText() const {
+  std::ostringstream os;
+  for (const IdentifiedSource& s : sources) {
+    os << "source " << s.name << ": " << IdentifyOutcomeName(s.outcome);
+    if (s.outcome == IdentifyOutcome::kFound) {
+      os << ", " << s.assigned << " points, rms " << FormatNumber(s.rms_residual_rad * 1e6, 4) << " urad";
+    }
+    if (!s.detail.empty()) os << " (" << s.detail << ")";
+    os << "\n";
+  }
+  os << num_assigned() << " of " << source_index.size() << " points assigned";
+  if (passed_through > 0) os << " (" << passed_through << " given)";
+  os << ", " << num_unassigned() << " unassigned\n";
+  return os.str();
+}
+
+std::vector<Spot> AssignedSpots(const std::vector<Spot>& spots, const IdentifyResult& result) {
+  std::vector<Spot> out;
+  if (result.source_index.size() != spots.size() || result.beam_id.size() != spots.size()) return out;
+  for (size_t i = 0; i < spots.size(); ++i) {
+    const int s = result.source_index[i];
+    if (s < 0 || s >= static_cast<int>(result.sources.size())) continue;
+    Spot spot = spots[i];
+    spot.source = result.sources[s].name;
+    spot.observation.beam_id = result.beam_id[i];
+    out.push_back(std::move(spot));
+  }
+  return out;
+}
+
+Result<IdentifyResult> IdentifySpots(const ModuleCalibration& calibration, const std::vector<Spot>& spots,
+                                     const IdentifyOptions& options) {
+  OPL_RETURN_IF_ERROR(options.Validate());
+  {
+    Status s = calibration.Validate();
+    if (!s.ok()) return Status::InvalidArgument("calibration: " + s.message());
+  }
+  if (calibration.sources.empty()) return Status::InvalidArgument("calibration: no sources");
+  const int num_sources = static_cast<int>(calibration.sources.size());
+
+  IdentifyResult result;
+  result.source_index.assign(spots.size(), -1);
+  result.beam_id.assign(spots.size(), 0);
+  for (const SourceCalibration& s : calibration.sources) {
+    IdentifiedSource is;
+    is.name = s.name;
+    result.sources.push_back(is);
+  }
+  std::vector<std::vector<char>> reserved(num_sources);
+  for (int s = 0; s < num_sources; ++s) {
+    const int n = calibration.sources[s].pattern.beams_per_side();
+    reserved[s].assign(static_cast<size_t>(n) * n + 1, 0);
+  }
+
+  Pool pool;
+  for (size_t i = 0; i < spots.size(); ++i) {
+    const Spot& spot = spots[i];
+    if (!spot.observation.point_in_scene.allFinite()) {
+      return Status::InvalidArgument(Where(spot, i) + ": point is not finite");
+    }
+    if (spot.observation.beam_id < 0) {
+      return Status::InvalidArgument(Where(spot, i) + ": beam id " + std::to_string(spot.observation.beam_id) +
+                                     " is negative");
+    }
+    int source = -1;
+    if (!spot.source.empty()) {
+      for (int s = 0; s < num_sources; ++s) {
+        if (calibration.sources[s].name == spot.source) source = s;
+      }
+      if (source < 0) {
+        std::string names;
+        for (const auto& s : calibration.sources) names += (names.empty() ? "" : ", ") + s.name;
+        return Status::InvalidArgument(Where(spot, i) + ": unknown source '" + spot.source +
+                                       "' (the calibration has " + names + ")");
+      }
+    }
+    if (source >= 0 && spot.observation.beam_id > 0) {
+      const BeamPattern& pattern = calibration.sources[source].pattern;
+      if (pattern.Find(spot.observation.beam_id) == nullptr) {
+        return Status::InvalidArgument(Where(spot, i) + ": beam " + std::to_string(spot.observation.beam_id) +
+                                       " is not in the pattern of source '" + spot.source + "'");
+      }
+      result.source_index[i] = source;
+      result.beam_id[i] = spot.observation.beam_id;
+      reserved[source][spot.observation.beam_id - 1] = 1;
+      ++result.passed_through;
+      continue;
+    }
+    pool.p.push_back(spot.observation.point_in_scene);
+    pool.spot.push_back(static_cast<int>(i));
+    pool.only_source.push_back(source);
+  }
+  pool.taken.assign(pool.p.size(), 0);
+  pool.blocked.assign(pool.p.size(), 0);
+
+  Identifier identifier(calibration, options, &pool, reserved);
+  std::vector<char> done(num_sources, 0);
+  std::vector<std::string> ambiguity(num_sources);
+  for (int s = 0; s < num_sources; ++s) {
+    if (identifier.index(s).spacing_rad <= 0.0) {
+      done[s] = 1;
+      result.sources[s].detail = "the pattern has no lattice node with a row and a column neighbour";
+    }
+  }
+
+  const std::vector<Seed> seeds = FindSeeds(pool, options.neighbours);
+  int tried = 0;
+  for (const Seed& seed : seeds) {
+    if (std::all_of(done.begin(), done.end(), [](char d) { return d != 0; })) break;
+    if (tried >= options.max_seeds) break;
+    const int sp[3] = {seed.p0, seed.pa, seed.pb};
+    bool skip = false;
+    for (int i : sp) skip |= pool.taken[i];
+    skip |= pool.blocked[seed.p0];
+    if (skip) continue;
+    ++tried;
+    std::vector<Candidate> candidates;
+    for (int s = 0; s < num_sources; ++s) {
+      if (done[s]) continue;
+      bool allowed = true;
+      for (int i : sp) allowed &= pool.only_source[i] < 0 || pool.only_source[i] == s;
+      if (allowed) identifier.Candidates(s, seed, &candidates);
+    }
+    if (candidates.empty()) continue;
+    std::stable_sort(candidates.begin(), candidates.end(),
+                     [](const Candidate& a, const Candidate& b) { return a.score > b.score; });
+    // Distinct poses only (the same hypothesis is reached from several
+    // symmetries, nodes and roots), the best-scoring first.
+    std::vector<const Candidate*> distinct;
+    for (const Candidate& c : candidates) {
+      if (static_cast<int>(distinct.size()) >= options.max_refined) break;
+      if (c.score * 2 < candidates.front().score) break;
+      const Eigen::Vector3d origin = -(c.pose.R.transpose() * c.pose.t);
+      const double range = (pool.p[seed.p0] - origin).norm();
+      bool same = false;
+      for (const Candidate* e : distinct) {
+        if (e->source != c.source) continue;
+        const Eigen::Vector3d eo = -(e->pose.R.transpose() * e->pose.t);
+        same |= RotationAngleBetweenRad(e->pose.R, c.pose.R) < 0.02 && (eo - origin).norm() < 0.02 * range;
+      }
+      if (!same) distinct.push_back(&c);
+    }
+    std::vector<Detection> detections;
+    auto add = [&detections](Detection d) {
+      for (Detection& e : detections) {
+        if (SameCorrespondence(d, e)) {
+          if (d.point.size() > e.point.size() || (d.point.size() == e.point.size() && d.sigma < e.sigma)) {
+            e = std::move(d);
+          }
+          return;
+        }
+      }
+      detections.push_back(std::move(d));
+    };
+    for (const Candidate* cp : distinct) {
+      Detection d;
+      const bool ok = identifier.Refine(*cp, &d);
+      // A detection whose noise is well below the acceptance limit is the
+      // grid; its symmetric and cross-source alternatives are examined next
+      // (step 4), so the remaining candidates need not be refined.
+      const bool clear = ok && d.sigma <= 0.25 * identifier.MaxSigma(d.source);
+      if (ok) add(std::move(d));
+      if (clear) break;
+    }
+    if (detections.empty()) continue;
+    // Common sigma: the smallest among the detections that explain nearly as
+    // many points as the most; the best detection has the lowest cost.
+    auto rank = [&]() {
+      size_t max_points = 0;
+      for (const Detection& d : detections) max_points = std::max(max_points, d.point.size());
+      double sigma = std::numeric_limits<double>::infinity();
+      for (const Detection& d : detections) {
+        if (d.point.size() * 5 >= max_points * 4) sigma = std::min(sigma, d.sigma);
+      }
+      for (Detection& d : detections) d.cost = identifier.Cost(d, sigma);
+      std::stable_sort(detections.begin(), detections.end(),
+                       [](const Detection& x, const Detection& y) { return x.cost < y.cost; });
+    };
+    rank();
+    detections.resize(1);
+    // The alternatives of the first detection: its points relabelled by every
+    // symmetry of the square about the pattern centre, in every unfound
+    // source allowed for them (header comment, step 4).
+    {
+      std::vector<char> allowed(num_sources, 0);
+      for (int s = 0; s < num_sources; ++s) {
+        bool ok = !done[s];
+        for (int i : detections[0].point) ok = ok && (pool.only_source[i] < 0 || pool.only_source[i] == s);
+        allowed[s] = ok;
+      }
+      const std::vector<Candidate> alternatives = identifier.Alternatives(detections[0], allowed);
+      for (const Candidate& c : alternatives) {
+        Detection d;
+        if (identifier.Refine(c, &d)) add(std::move(d));
+      }
+    }
+    rank();
+    if (detections.empty()) continue;
+    size_t best = 0;
+    for (size_t k = 1; k < detections.size(); ++k) {
+      if (detections[k].cost < detections[best].cost) best = k;
+    }
+    const Detection& b = detections[best];
+    std::vector<size_t> rivals;
+    for (size_t k = 0; k < detections.size(); ++k) {
+      if (k != best && detections[k].cost - b.cost < options.ambiguity_chi2) rivals.push_back(k);
+    }
+    if (rivals.empty()) {
+      IdentifiedSource& out = result.sources[b.source];
+      out.outcome = IdentifyOutcome::kFound;
+      out.detail.clear();
+      out.scene_from_source = b.scene_from_source;
+      out.assigned = static_cast<int>(b.point.size());
+      out.sigma_rad = b.sigma;
+      double ss = 0.0;
+      for (size_t k = 0; k < b.point.size(); ++k) {
+        const int i = b.point[k];
+        pool.taken[i] = 1;
+        result.source_index[pool.spot[i]] = b.source;
+        result.beam_id[pool.spot[i]] = b.beam[k];
+        ss += b.residual[k] * b.residual[k];
+      }
+      out.rms_residual_rad = std::sqrt(ss / (2.0 * std::max<size_t>(1, b.point.size())));
+      done[b.source] = 1;
+      continue;
+    }
+    // Ambiguous: say why, for every source involved.
+    for (int i : b.point) pool.blocked[i] = 1;
+    const Detection& r = detections[rivals.front()];
+    std::ostringstream why;
+    if (r.source == b.source) {
+      const double angle = RotationAngleBetweenRad(b.scene_from_source.RotationMatrix(),
+                                                   r.scene_from_source.RotationMatrix());
+      why << b.point.size() << " points fit two correspondences as well (the other pose rotated by "
+          << FormatNumber(angle * 180.0 / kPi, 4) << " deg; chi2 difference "
+          << FormatNumber(r.cost - b.cost, 3) << " < " << FormatNumber(options.ambiguity_chi2, 3)
+          << "): the pattern is symmetric to within the noise";
+      ambiguity[b.source] = why.str();
+      done[b.source] = 1;
+    } else {
+      why << "a grid of " << b.point.size() << " points fits sources " << calibration.sources[b.source].name
+          << " and " << calibration.sources[r.source].name << " as well (chi2 difference "
+          << FormatNumber(r.cost - b.cost, 3) << " < " << FormatNumber(options.ambiguity_chi2, 3) << ")";
+      ambiguity[b.source] = why.str();
+      ambiguity[r.source] = why.str();
+    }
+  }
+
+  // Overlapping grids: a point assigned to one found source that also lies
+  // within the gate of a beam of another found source could be either's
+  // spot (e.g. a spot of one grid where the other's is missing): refuse it.
+  for (int i = 0; i < pool.size(); ++i) {
+    const int spot = pool.spot[i];
+    const int s = result.source_index[spot];
+    if (s < 0) continue;
+    for (int o = 0; o < num_sources; ++o) {
+      if (o == s || result.sources[o].outcome != IdentifyOutcome::kFound) continue;
+      if (pool.only_source[i] >= 0 && pool.only_source[i] != o) continue;
+      const double angle = identifier.NearestAngle(o, result.sources[o].scene_from_source, pool.p[i]);
+      if (angle < identifier.FinalGate(o, result.sources[o].sigma_rad)) {
+        const double r = identifier.NearestAngle(s, result.sources[s].scene_from_source, pool.p[i]);
+        IdentifiedSource& src = result.sources[s];
+        const double ss = src.rms_residual_rad * src.rms_residual_rad * 2.0 * src.assigned - r * r;
+        --src.assigned;
+        src.rms_residual_rad = std::sqrt(std::max(0.0, ss) / (2.0 * std::max(1, src.assigned)));
+        result.source_index[spot] = -1;
+        result.beam_id[spot] = 0;
+        break;
+      }
+    }
+  }
+
+  for (int s = 0; s < num_sources; ++s) {
+    IdentifiedSource& out = result.sources[s];
+    if (out.outcome == IdentifyOutcome::kFound) continue;
+    if (!ambiguity[s].empty()) {
+      out.outcome = IdentifyOutcome::kAmbiguous;
+      out.detail = ambiguity[s];
+    } else if (out.detail.empty()) {
+      out.outcome = IdentifyOutcome::kNotFound;
+      if (pool.size() < options.min_spots) {
+        out.detail = "too few points to identify: " + std::to_string(pool.size()) + " (at least " +
+                     std::to_string(options.min_spots) + " needed)";
+      } else if (seeds.empty()) {
+        out.detail = "no lattice-like group of points (a point with two pairs of opposite neighbours)";
+      } else {
+        out.detail = "no pose explains at least " + std::to_string(identifier.MinPoints(s)) + " points (" +
+                     std::to_string(tried) + " seeds tried)";
+      }
+    }
+  }
+  return result;
+}
+
+}  // namespace opl

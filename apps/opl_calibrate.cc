@@ -9,7 +9,11 @@
 #include <vector>
 
 #include "cli_common.h"
+#include "spots_input.h"
 #include "opl/calibrate/calibrate_module.h"
+#include "opl/identify/identify_slices.h"
+#include "opl/io/module_design_json.h"
+#include "opl/sim/module_design.h"
 #include "opl/io/atomic_file.h"
 #include "opl/io/module_calibration_json.h"
 #include "opl/io/points_csv.h"
@@ -26,7 +30,8 @@ constexpr const char* kTool = "opl_calibrate";
 const char* const kKnownExtraColumns[] = {"screen", "outlier", "true_x", "true_y", "true_z"};
 
 struct Args {
-  std::string spots_path;
+  opl::cli::SpotsInputArgs spots;
+  std::string design_path;
   std::string out_path;
   std::string report_dir;
   int beams_per_side = 0;
@@ -100,15 +105,25 @@ int Run(int argc, char** argv) {
       "--artifact, --artifact-length-mm). Columns other than source,beam,x,y,z,sx,sy,sz,\n"
       "slice (and opl_simulate's ground truth screen,outlier,true_x,true_y,true_z) are\n"
       "refused, to catch a misnamed column; --allow-extra-columns ignores them.\n"
+      "Spots without source or beam (empty fields, no such columns, or a point table\n"
+      "read with --columns id,x,y,z,slice) are identified slice by slice against the\n"
+      "nominal patterns of --design, numbered as the design mounts each source (the\n"
+      "module must be mounted within 30 deg of its design orientation); a slice whose\n"
+      "grid cannot be identified for sure is left out and reported.\n"
       "\n"
       "Output: the module calibration JSON (--out), with per-beam covariances and per-\n"
       "source quality figures, and a summary on stdout. With --report DIR also:\n"
       "beams.csv (per-beam quality), samples.csv (every sample's residual and status)\n"
       "and heatmap_<source>.png (mean point-to-ray distance per beam over the grid).\n",
       kTool);
-  app.add_option("--spots", args.spots_path,
-                 "Spots CSV of the session: source,beam,x,y,z[,sx,sy,sz],slice")
+  app.add_option("--spots", args.spots.path,
+                 "Spots CSV of the session: [source,beam,]x,y,z[,sx,sy,sz],slice")
       ->required()
+      ->type_name("FILE");
+  opl::cli::AddPointTableOptions(app, &args.spots);
+  app.add_option("--design", args.design_path,
+                 "Module design JSON (docs/simulation.md): the nominal patterns and mounting of\n"
+                 "the sources, in the session's frame; needed to identify unassigned spots")
       ->type_name("FILE");
   app.add_option("--out", args.out_path, "Module calibration JSON to write (atomically)")
       ->required()
@@ -156,6 +171,8 @@ int Run(int argc, char** argv) {
       "  opl_simulate slices --design examples/prototype_design.json --depths 750:65:1335 \\\n"
       "      --out slices.csv\n"
       "  opl_calibrate --spots slices.csv --out module.json --report report/\n"
+      "  opl_calibrate --spots session.txt --columns id,x,y,z,slice --design design.json \\\n"
+      "      --out module.json\n"
       "  opl_calibrate --spots session.csv --targets targets.csv --artifact T1,T2 \\\n"
       "      --artifact-length-mm 1677.66 --artifact-u-mm 0.005 --out module.json\n"));
   if (std::optional<int> code = cli::ParseCommandLine(app, argc, argv)) return *code;
@@ -170,15 +187,19 @@ int Run(int argc, char** argv) {
     return cli::Fail(kTool, "invalid option: " + st.message(), cli::kExitBadInput);
   }
 
-  Result<SpotsCsvData> spots = ReadSpotsCsv(args.spots_path);
-  if (!spots.ok()) return cli::FailInput(kTool, spots.status());
+  bool usage_error = false;
+  Result<SpotsCsvData> spots = cli::ReadSpotsInput(args.spots, &usage_error);
+  if (!spots.ok()) {
+    if (usage_error) return cli::Fail(kTool, spots.status().message(), cli::kExitUsage);
+    return cli::FailInput(kTool, spots.status());
+  }
   if (!args.allow_extra_columns) {
     for (const std::string& column : spots->other_columns) {
       bool known = false;
       for (const char* k : kKnownExtraColumns) known |= column == k;
       if (!known) {
         return cli::Fail(kTool,
-                         args.spots_path + ":1: unknown column '" + column +
+                         args.spots.path + ":1: unknown column '" + column +
                              "' (expected source,beam,x,y,z,sx,sy,sz,slice; "
                              "--allow-extra-columns ignores it)",
                          cli::kExitBadInput);
@@ -187,9 +208,38 @@ int Run(int argc, char** argv) {
   }
   if (spots->slices.empty()) {
     return cli::Fail(kTool,
-                     args.spots_path + ":1: missing column 'slice' (a calibration session "
+                     args.spots.path + ":1: missing column 'slice' (a calibration session "
                                        "needs the slice of every spot)",
                      cli::kExitBadInput);
+  }
+  // Unassigned spots: identified against the design's nominal patterns.
+  std::string identification_text;
+  if (spots->num_unassigned() > 0) {
+    if (args.design_path.empty()) {
+      return cli::Fail(kTool,
+                       args.spots.path + ": " + std::to_string(spots->num_unassigned()) +
+                           " spots have no source or beam: give --design (the nominal patterns "
+                           "and mounting of the module) to identify them",
+                       cli::kExitBadInput);
+    }
+    Result<ModuleDesign> design = ReadModuleDesignJson(args.design_path);
+    if (!design.ok()) return cli::FailInput(kTool, design.status());
+    Result<ModuleCalibration> nominal = ExactCalibration(*design);
+    if (!nominal.ok()) return cli::FailInput(kTool, nominal.status());
+    Result<SessionIdentification> identified =
+        IdentifySessionSlices(*nominal, spots->spots, spots->slices);
+    if (!identified.ok()) return cli::FailInput(kTool, identified.status());
+    identification_text = identified->ToText();
+    if (identified->spots.empty()) {
+      const SliceIdentification& first = identified->per_slice.front();
+      return cli::Fail(kTool,
+                       args.spots.path + ": no spot identified in any of the " +
+                           std::to_string(identified->per_slice.size()) + " slices (slice " +
+                           std::to_string(first.slice) + ": " + first.detail + ")",
+                       cli::kExitNoSolution);
+    }
+    spots->spots = std::move(identified->spots);
+    spots->slices = std::move(identified->slices);
   }
   std::optional<CalibrationScaling> scaling;
   if (!args.targets_path.empty()) {
@@ -234,7 +284,7 @@ int Run(int argc, char** argv) {
   if (Status st = WriteFileAtomically(args.out_path, *json); !st.ok()) {
     return cli::FailWrite(kTool, st);
   }
-  return cli::PrintToStdout(kTool, CalibrationSummaryText(*result));
+  return cli::PrintToStdout(kTool, identification_text + CalibrationSummaryText(*result));
 }
 
 }  // namespace

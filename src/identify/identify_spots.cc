@@ -796,6 +796,26 @@ Status IdentifyOptions::Validate() const {
   }
   if (neighbours < 4 || neighbours > 64) return bad("neighbours", neighbours, "must be in [4, 64]");
   if (max_seeds < 1) return bad("max_seeds", max_seeds, "must be >= 1");
+  if (!(expected_rotation_tolerance_deg > 0.0 && expected_rotation_tolerance_deg < 45.0)) {
+    return bad("expected_rotation_tolerance_deg", expected_rotation_tolerance_deg,
+               "must be in (0, 45) (the symmetries of a square grid are 90 deg apart)");
+  }
+  if (!expected_origin.empty() && !(expected_origin_tolerance > 0.0 && std::isfinite(expected_origin_tolerance))) {
+    return bad("expected_origin_tolerance", expected_origin_tolerance,
+               "must be finite and > 0 when expected_origin is given");
+  }
+  for (const auto& [name, o] : expected_origin) {
+    if (!o.allFinite()) {
+      return Status::InvalidArgument("IdentifyOptions.expected_origin['" + name + "']: not finite");
+    }
+  }
+  for (const auto& [name, r] : expected_rotation) {
+    if (!r.allFinite() || (r.transpose() * r - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() > 1e-6 ||
+        std::abs(r.determinant() - 1.0) > 1e-6) {
+      return Status::InvalidArgument("IdentifyOptions.expected_rotation['" + name +
+                                     "']: not a proper rotation");
+    }
+  }
   if (max_refined < 1) return bad("max_refined", max_refined, "must be >= 1");
   if (!(max_sigma_fraction > 0.0 && max_sigma_fraction <= 0.5)) {
     return bad("max_sigma_fraction", max_sigma_fraction, "must be in (0, 0.5]");
@@ -850,6 +870,45 @@ Result<IdentifyResult> IdentifySpots(const ModuleCalibration& calibration, const
   }
   if (calibration.sources.empty()) return Status::InvalidArgument("calibration: no sources");
   const int num_sources = static_cast<int>(calibration.sources.size());
+  // The orientation prior, by source index (identity-free when absent).
+  std::vector<const Eigen::Matrix3d*> expected(num_sources, nullptr);
+  for (const auto& [name, r] : options.expected_rotation) {
+    bool known = false;
+    for (int s = 0; s < num_sources; ++s) {
+      if (calibration.sources[s].name == name) {
+        expected[s] = &r;
+        known = true;
+      }
+    }
+    if (!known) {
+      return Status::InvalidArgument("IdentifyOptions.expected_rotation: unknown source '" + name + "'");
+    }
+  }
+  std::vector<const Eigen::Vector3d*> expected_origin(num_sources, nullptr);
+  for (const auto& [name, o] : options.expected_origin) {
+    bool known = false;
+    for (int s = 0; s < num_sources; ++s) {
+      if (calibration.sources[s].name == name) {
+        expected_origin[s] = &o;
+        known = true;
+      }
+    }
+    if (!known) {
+      return Status::InvalidArgument("IdentifyOptions.expected_origin: unknown source '" + name + "'");
+    }
+  }
+  const double prior_tolerance_rad = options.expected_rotation_tolerance_deg * kPi / 180.0;
+  auto against_prior = [&](const Detection& d) {
+    const bool rotation_off =
+        expected[d.source] != nullptr &&
+        RotationAngleBetweenRad(*expected[d.source], d.scene_from_source.RotationMatrix()) >
+            prior_tolerance_rad;
+    const bool origin_off =
+        expected_origin[d.source] != nullptr &&
+        (d.scene_from_source.translation - *expected_origin[d.source]).norm() >
+            options.expected_origin_tolerance;
+    return rotation_off || origin_off;
+  };
 
   IdentifyResult result;
   result.source_index.assign(spots.size(), -1);
@@ -1007,6 +1066,8 @@ Result<IdentifyResult> IdentifySpots(const ModuleCalibration& calibration, const
         if (identifier.Refine(c, &d)) add(std::move(d));
       }
     }
+    detections.erase(std::remove_if(detections.begin(), detections.end(), against_prior),
+                     detections.end());
     rank();
     if (detections.empty()) continue;
     size_t best = 0;

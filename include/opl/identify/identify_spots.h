@@ -69,8 +69,11 @@
 #pragma once
 
 #include <cstdint>
+#include <map>
 #include <string>
 #include <vector>
+
+#include <Eigen/Core>
 
 #include "opl/core/status.h"
 #include "opl/geometry/rigid3.h"
@@ -124,6 +127,20 @@ struct IdentifyOptions {
   int max_seeds = 400;
   // Candidate hypotheses refined per seed (the best by exact score).
   int max_refined = 8;
+  // Prior on the orientation of sources, by name: the expected rotation of
+  // scene_from_source (e.g. how a module is mounted in a calibration set-up:
+  // identify_slices.h). A hypothesis of such a source rotated by more than
+  // expected_rotation_tolerance_deg from it is not considered, so that an
+  // ideal pattern, symmetric under a 90 deg roll, is numbered as mounted
+  // instead of being ambiguous. Empty: no prior (measurements).
+  std::map<std::string, Eigen::Matrix3d> expected_rotation;
+  double expected_rotation_tolerance_deg = 30.0;
+  // Prior on the projection origins, by name (scene units): a hypothesis of
+  // such a source whose origin is farther than expected_origin_tolerance from
+  // it is not considered. This tells apart sources with the same pattern
+  // mounted side by side. Empty: no prior.
+  std::map<std::string, Eigen::Vector3d> expected_origin;
+  double expected_origin_tolerance = 0.0;  // > 0 when expected_origin is given
   // Seed of the only random choice (LocateSource's RANSAC when it runs);
   // fixed: results repeat run to run.
   uint64_t seed = 1;

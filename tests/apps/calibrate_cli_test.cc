@@ -105,6 +105,53 @@ TEST_F(CalibrateCli, CalibratesASimulatedSessionAndTheResultMeasures) {
   EXPECT_LT(u, 3e-3);
 }
 
+// The same session exported as a point table (no source, no beam, shuffled
+// rows): identified against the design (--design) and calibrated to the same
+// separation as the labelled session, to 1e-6 mm (the identification leaves
+// out only the moved samples, which the labelled calibration flags).
+TEST_F(CalibrateCli, UnlabelledSessionIsIdentifiedWithTheDesign) {
+  const std::string slices = Session("--missing 0.05 --outliers 0.01");
+  const std::string csv = ReadAll(slices);
+  std::vector<std::string> rows;
+  size_t start = csv.find('\n') + 1;
+  for (size_t at; (at = csv.find('\n', start)) != std::string::npos; start = at + 1) {
+    const std::string line = csv.substr(start, at - start);
+    std::vector<std::string> f;
+    size_t from = 0;
+    for (size_t c; (c = line.find(',', from)) != std::string::npos; from = c + 1) {
+      f.push_back(line.substr(from, c - from));
+    }
+    f.push_back(line.substr(from));
+    // source,beam,x,y,z,sx,sy,sz,slice,... -> "P<k> x y z sx sy sz slice"
+    std::string row = "P" + std::to_string(rows.size());
+    for (int k = 2; k <= 8; ++k) row += " " + f[static_cast<size_t>(k)];
+    rows.push_back(row);
+  }
+  std::reverse(rows.begin(), rows.end());
+  std::string table = "Name X Y Z SX SY SZ Slice\n";
+  for (const std::string& row : rows) table += row + "\n";
+  const std::string points = dir_.Write("session.txt", table);
+
+  const RunResult labelled = Calibrate("--spots " + slices + " --out " + dir_.File("ref.json"));
+  ASSERT_EQ(labelled.exit_code, 0) << labelled.err;
+  const RunResult r = Calibrate("--spots " + points + " --columns id,x,y,z,sx,sy,sz,slice --skip-rows 1" +
+                                " --design " + design_ + " --out " + dir_.File("module.json"));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_THAT(r.out, HasSubstr("Identification: "));
+  EXPECT_THAT(r.out, HasSubstr(" spots assigned in 20 slices"));
+  Result<ModuleCalibration> ref = ReadModuleCalibrationJson(dir_.File("ref.json"));
+  Result<ModuleCalibration> cal = ReadModuleCalibrationJson(dir_.File("module.json"));
+  ASSERT_TRUE(ref.ok() && cal.ok());
+  EXPECT_NEAR(cal->separations[0].length_mm, ref->separations[0].length_mm, 1e-6);
+  EXPECT_EQ(cal->sources[0].pattern.beams().size(), 121u);
+
+  // Without --design the unassigned spots are refused.
+  std::filesystem::remove(dir_.File("module.json"));
+  ExpectRefused(Calibrate("--spots " + points + " --columns id,x,y,z,sx,sy,sz,slice --skip-rows 1 --out " +
+                          dir_.File("module.json")),
+                3, "spots have no source or beam: give --design");
+}
+
 TEST_F(CalibrateCli, ArtifactScalesTheSession) {
   const std::string slices = Session("--noise-scale 0");
   // The session's frame is the design's (mm); the artifact says it is 1% short.

@@ -193,6 +193,23 @@ int CalibrationCommand(const Args& args) {
   return cli::kExitOk;
 }
 
+// Runs a Monte Carlo (`run` on `options`) with a progress bar on a terminal,
+// warns on stderr about failed iterations and prints the report.
+template <class Options, class Run>
+int RunAndPrint(const Args& args, Options options, const Run& run) {
+  using namespace opl;
+  cli::ProgressBar bar("mc", cli::StderrIsTerminal());
+  options.progress = [&bar](int done, int total) { bar.Update(done, total); };
+  auto report = run(options);
+  bar.Finish();
+  if (!report.ok()) return cli::FailInput(kTool, report.status());
+  if (report->failed > 0) {
+    std::fprintf(stderr, "%s: warning: %d of %d iterations failed and were left out; %s\n",
+                 kTool, report->failed, report->iterations, report->first_failure.c_str());
+  }
+  return cli::PrintToStdout(kTool, args.json ? report->ToJson() : report->ToText());
+}
+
 int CalibrationMonteCarloCommand(const Args& args, const opl::ModuleDesign& design) {
   using namespace opl;
   CalibrationMonteCarloOptions options;
@@ -212,16 +229,9 @@ int CalibrationMonteCarloCommand(const Args& args, const opl::ModuleDesign& desi
   if (Status st = options.Validate(); !st.ok()) {
     return cli::Fail(kTool, "invalid option: " + st.message(), cli::kExitBadInput);
   }
-  cli::ProgressBar bar("mc", cli::StderrIsTerminal());
-  options.progress = [&bar](int done, int total) { bar.Update(done, total); };
-  Result<CalibrationMonteCarloReport> report = RunCalibrationMonteCarlo(design, options);
-  bar.Finish();
-  if (!report.ok()) return cli::FailInput(kTool, report.status());
-  if (report->failed > 0) {
-    std::fprintf(stderr, "%s: warning: %d of %d iterations failed and were left out; %s\n",
-                 kTool, report->failed, report->iterations, report->first_failure.c_str());
-  }
-  return cli::PrintToStdout(kTool, args.json ? report->ToJson() : report->ToText());
+  return RunAndPrint(args, options, [&design](const CalibrationMonteCarloOptions& o) {
+    return RunCalibrationMonteCarlo(design, o);
+  });
 }
 
 int MonteCarloCommand(const Args& args) {
@@ -252,16 +262,9 @@ int MonteCarloCommand(const Args& args) {
   if (Status st = options.Validate(); !st.ok()) {
     return cli::Fail(kTool, "invalid option: --" + st.message(), cli::kExitBadInput);
   }
-  cli::ProgressBar bar("mc", cli::StderrIsTerminal());
-  options.progress = [&bar](int done, int total) { bar.Update(done, total); };
-  Result<MonteCarloReport> report = RunMeasurementMonteCarlo(design, options);
-  bar.Finish();
-  if (!report.ok()) return cli::FailInput(kTool, report.status());
-  if (report->failed > 0) {
-    std::fprintf(stderr, "%s: warning: %d of %d iterations failed and were left out; %s\n",
-                 kTool, report->failed, report->iterations, report->first_failure.c_str());
-  }
-  return cli::PrintToStdout(kTool, args.json ? report->ToJson() : report->ToText());
+  return RunAndPrint(args, options, [&design](const MonteCarloOptions& o) {
+    return RunMeasurementMonteCarlo(design, o);
+  });
 }
 
 int SweepCommand(const Args& args) {

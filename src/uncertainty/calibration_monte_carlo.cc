@@ -517,16 +517,8 @@ std::string CalibrationMonteCarloReport::ToText() const {
 
 std::string CalibrationMonteCarloReport::ToJson() const {
   using nlohmann::ordered_json;
-  ordered_json doc;
-  doc["format"] = "opl.calibration_monte_carlo_report";
-  doc["version"] = 1;
-  doc["iterations"] = iterations;
-  doc["succeeded"] = succeeded;
-  doc["failed"] = failed;
-  if (failed > 0) doc["first_failure"] = first_failure;
-  doc["seed"] = seed;
-  doc["coverage_probability"] = coverage_probability;
-  doc["coverage_interval"] = "probabilistically_symmetric";
+  ordered_json doc = internal::RunHeaderJson("opl.calibration_monte_carlo_report", iterations, succeeded, failed,
+                                              first_failure, seed, coverage_probability);
   doc["spot_noise_mm"] = VectorJson(spot_noise_mm);
   doc["depths_mm"] = depths_mm;
   doc["tilt_deg"] = tilt_deg;

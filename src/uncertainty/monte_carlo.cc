@@ -397,16 +397,8 @@ std::string MonteCarloReport::ToText() const {
 
 std::string MonteCarloReport::ToJson() const {
   using nlohmann::ordered_json;
-  ordered_json doc;
-  doc["format"] = "opl.monte_carlo_report";
-  doc["version"] = 1;
-  doc["iterations"] = iterations;
-  doc["succeeded"] = succeeded;
-  doc["failed"] = failed;
-  if (failed > 0) doc["first_failure"] = first_failure;
-  doc["seed"] = seed;
-  doc["coverage_probability"] = coverage_probability;
-  doc["coverage_interval"] = "probabilistically_symmetric";
+  ordered_json doc = internal::RunHeaderJson("opl.monte_carlo_report", iterations, succeeded, failed,
+                                              first_failure, seed, coverage_probability);
   doc["weighting"] = SpotWeightingName(weighting);
   doc["spot_noise_mm"] = VectorJson(spot_noise_mm);
   ordered_json length_array = ordered_json::array();

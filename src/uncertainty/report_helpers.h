@@ -2,6 +2,9 @@
 // calibration_monte_carlo.cc) share to write their text and JSON.
 #pragma once
 
+#include <cstdint>
+#include <string>
+
 #include <Eigen/Core>
 #include <nlohmann/json.hpp>
 
@@ -26,6 +29,25 @@ inline nlohmann::ordered_json VectorJson(const Eigen::Vector3d& v) {
 inline nlohmann::ordered_json IntervalJson(const SampleSummary& s, const CoverageInterval& c) {
   if (!s.has_interval) return nullptr;
   return nlohmann::ordered_json::array({c.low, c.high});
+}
+
+// The keys every Monte Carlo report starts with: format, version 1, the run
+// (iterations, succeeded, failed, first_failure when failed > 0, seed) and
+// the coverage intervals' probability and kind.
+inline nlohmann::ordered_json RunHeaderJson(const char* format, int iterations, int succeeded,
+                                            int failed, const std::string& first_failure,
+                                            uint64_t seed, double coverage_probability) {
+  nlohmann::ordered_json doc;
+  doc["format"] = format;
+  doc["version"] = 1;
+  doc["iterations"] = iterations;
+  doc["succeeded"] = succeeded;
+  doc["failed"] = failed;
+  if (failed > 0) doc["first_failure"] = first_failure;
+  doc["seed"] = seed;
+  doc["coverage_probability"] = coverage_probability;
+  doc["coverage_interval"] = "probabilistically_symmetric";
+  return doc;
 }
 
 }  // namespace opl::internal

@@ -47,6 +47,11 @@ struct PatternIndex {
   Eigen::Matrix2d Minv = Eigen::Matrix2d::Identity();
   double spacing_rad = 0.0;  // median angle between lattice neighbours
   Eigen::Vector2i ref = Eigen::Vector2i::Zero();  // reference node (col, row) with +col, +row neighbours
+  Eigen::Vector3d axis = Eigen::Vector3d::UnitX();  // unit, mean of the beams
+  double cone_chord = 4.0;  // largest chord from `axis` to a beam
+  // Minv's row sums of |.| times FastAtan's error bound are far below the
+  // 1e-6 rounding margin (always for a usable lattice; checked).
+  bool fast_margin_ok = false;
 
   bool Has(int col, int row) const {
     return col >= 0 && row >= 0 && col < n && row < n && exists[row * n + col];
@@ -61,14 +66,110 @@ struct PatternIndex {
   // Continuous (col, row) of a direction with q.x() > 0.
   Eigen::Vector2d Lattice(const Eigen::Vector3d& q) const { return Minv * (Coords(cosines, q) - c0); }
 
+  // std::lround for |x| < 1e6, inline: x - trunc(x) is exact.
+  static int RoundHalfAway(double x) {
+    const int t = static_cast<int>(x);
+    const double f = x - t;
+    return f >= 0.5 ? t + 1 : (f <= -0.5 ? t - 1 : t);
+  }
+
+  // False only when every beam is farther than `gate` (chord) from the
+  // direction of q (q.x() > 0), so that Nearest's angle is >= gate: the
+  // chord is a metric, |u - d| >= |u - axis| - |d - axis|. The margin keeps
+  // the test conservative under rounding.
+  bool MayBeWithin(const Eigen::Vector3d& q, double gate) const {
+    const double reach = cone_chord + gate + 1e-9;
+    return (q - q.norm() * axis).squaredNorm() <= reach * reach * q.squaredNorm();
+  }
+
+  // atan(t) for |t| < 1e3, absolute error below 3e-10 (measured against
+  // std::atan2 over 2e7 values: worst 2.3e-10, at |t| ~ 1e3): two half-angle
+  // reductions, atan(t) = 2 atan(t / (1 + sqrt(1 + t^2))), leave
+  // |b| < tan(pi / 8) = 0.415, then the alternating series to b^21
+  // (truncation < 0.415^23 / 23 = 7e-11, times 4).
+  static constexpr double kInvOdd[11] = {1.0,        1.0 / 3.0,  1.0 / 5.0,  1.0 / 7.0,
+                                         1.0 / 9.0,  1.0 / 11.0, 1.0 / 13.0, 1.0 / 15.0,
+                                         1.0 / 17.0, 1.0 / 19.0, 1.0 / 21.0};
+  static double FastAtan(double t) {
+    const double a = t / (1.0 + std::sqrt(1.0 + t * t));
+    // |t| <= tan(pi / 8): one reduction already leaves |a| <= tan(pi / 16).
+    if (std::abs(t) <= 0.41) {
+      const double a2 = a * a;
+      double p = kInvOdd[10];
+      for (int k = 9; k >= 0; --k) p = kInvOdd[k] - a2 * p;
+      return 2.0 * a * p;
+    }
+    const double b = a / (1.0 + std::sqrt(1.0 + a * a));
+    const double b2 = b * b;
+    double p = kInvOdd[10];
+    for (int k = 9; k >= 0; --k) p = kInvOdd[k] - b2 * p;
+    return 4.0 * b * p;
+  }
+
+  // The 3 x 3 window of Nearest: the node (col, row) nearest the lattice
+  // position of q (q.x() > 0), rounded half away from zero exactly as with
+  // the atan2 model; false when the position is out of range. For the
+  // tangent model the position is first computed with FastAtan; its error
+  // (< 3e-10 rad, i.e. < 1e-7 lattice steps: fast_margin_ok) cannot
+  // change the rounding unless the position lies within 1e-6 of a half
+  // integer, and then the exact path is taken.
+  bool Window(const Eigen::Vector3d& q, int* col, int* row) const {
+    if (!cosines) {
+      const double inv_x = 1.0 / q.x();
+      const double ty = q.y() * inv_x, tz = q.z() * inv_x;
+      if (std::abs(ty) < 1e3 && std::abs(tz) < 1e3) {
+        const Eigen::Vector2d l = Minv * (Eigen::Vector2d(FastAtan(ty), FastAtan(tz)) - c0);
+        if (std::abs(l.x()) < 1e5 && std::abs(l.y()) < 1e5 && fast_margin_ok) {
+          const double fx = std::abs(l.x() - std::floor(l.x()) - 0.5);
+          const double fy = std::abs(l.y() - std::floor(l.y()) - 0.5);
+          if (fx > 1e-6 && fy > 1e-6) {
+            *col = RoundHalfAway(l.x());
+            *row = RoundHalfAway(l.y());
+            return true;
+          }
+        }
+      }
+    }
+    const Eigen::Vector2d l = Lattice(q);
+    if (!(std::abs(l.x()) < 1e6 && std::abs(l.y()) < 1e6)) return false;
+    *col = RoundHalfAway(l.x());
+    *row = RoundHalfAway(l.y());
+    return true;
+  }
+
+  // Nearest(q, &angle) >= 0 && angle < gate, without finding the nearest:
+  // true as soon as one node of the same 3 x 3 window is within the gate
+  // (sqrt is monotonic, so min sqrt(d2) < gate iff some sqrt(d2) < gate).
+  bool AnyWithin(const Eigen::Vector3d& q, double gate) const {
+    int c0i, r0i;
+    if (!Window(q, &c0i, &r0i)) return false;
+    const Eigen::Vector3d u = q.normalized();
+    // sqrt(d2) < gate decided without the sqrt away from the boundary.
+    const double lo = gate * gate * (1.0 - 1e-12), hi = gate * gate * (1.0 + 1e-12);
+    auto within = [&](int c, int r) {
+      if (!Has(c, r)) return false;
+      const double d2 = (u - Dir(c, r)).squaredNorm();
+      if (d2 < lo) return true;
+      if (d2 > hi) return false;
+      return std::sqrt(d2) < gate;
+    };
+    // The central node first (the likeliest), then the other eight.
+    if (within(c0i, r0i)) return true;
+    for (int r = r0i - 1; r <= r0i + 1; ++r) {
+      for (int c = c0i - 1; c <= c0i + 1; ++c) {
+        if ((r != r0i || c != c0i) && within(c, r)) return true;
+      }
+    }
+    return false;
+  }
+
   // Nearest beam to the direction of q (q.x() > 0) among the 3 x 3 nodes
   // around its lattice position; returns the node index (-1 when none) and
   // the angle (chord of unit vectors, ~ the angle for small angles).
   int Nearest(const Eigen::Vector3d& q, double* angle) const {
+    int c0i, r0i;
+    if (!Window(q, &c0i, &r0i)) return -1;
     const Eigen::Vector3d u = q.normalized();
-    const Eigen::Vector2d l = Lattice(q);
-    if (!(std::abs(l.x()) < 1e6 && std::abs(l.y()) < 1e6)) return -1;
-    const int c0i = static_cast<int>(std::lround(l.x())), r0i = static_cast<int>(std::lround(l.y()));
     int best = -1;
     double best_d2 = std::numeric_limits<double>::infinity();
     for (int r = r0i - 1; r <= r0i + 1; ++r) {
@@ -130,6 +231,17 @@ PatternIndex BuildIndex(const BeamPattern& pattern) {
       index.Minv = Minv;
     }
   }
+  {
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    for (const Beam& b : pattern.beams()) sum += index.dir[b.id - 1];
+    if (sum.norm() > 0.0) {
+      index.axis = sum.normalized();
+      double reach = 0.0;
+      for (const Beam& b : pattern.beams()) reach = std::max(reach, (index.dir[b.id - 1] - index.axis).norm());
+      index.cone_chord = reach;
+    }
+  }
+  index.fast_margin_ok = index.Minv.cwiseAbs().rowwise().sum().maxCoeff() * 3e-10 < 1e-7;
   // Spacing: median angle between lattice neighbours.
   std::vector<double> angles;
   for (int r = 0; r < n; ++r) {
@@ -188,18 +300,26 @@ std::vector<Seed> FindSeeds(const Pool& pool, int k) {
   k = std::min(k, n - 1);
   std::vector<std::pair<double, int>> dist(n);
   std::vector<int> nb(k);
+  std::vector<Eigen::Vector3d> nbp(k);  // the neighbours' points, contiguous
   struct Axis {
     int plus, minus;
     Eigen::Vector3d a;
     double err;
+    double norm;
   };
   std::vector<Axis> axes;
   for (int i = 0; i < n; ++i) {
     for (int j = 0; j < n; ++j) dist[j] = {j == i ? std::numeric_limits<double>::infinity()
                                                   : (pool.p[j] - pool.p[i]).squaredNorm(),
                                            j};
-    std::partial_sort(dist.begin(), dist.begin() + k, dist.end());
+    // The k smallest (distance, index) pairs, sorted: the keys are unique,
+    // so this is exactly what partial_sort gives, in O(n).
+    std::nth_element(dist.begin(), dist.begin() + (k - 1), dist.end());
+    std::sort(dist.begin(), dist.begin() + k);
     for (int j = 0; j < k; ++j) nb[j] = dist[j].second;
+    for (int j = 0; j < k; ++j) nbp[j] = pool.p[nb[j]];
+    const Eigen::Vector3d pi = pool.p[i];
+    const double nearest = std::sqrt(dist[0].first);
     axes.clear();
     for (int a = 0; a < k; ++a) {
       const Eigen::Vector3d va = pool.p[nb[a]] - pool.p[i];
@@ -211,14 +331,22 @@ std::vector<Seed> FindSeeds(const Pool& pool, int k) {
         if (std::min(la, lb) < 0.5 * lmax) continue;
         const double err = (va + vb).norm() / lmax;
         if (err > 0.35) continue;
-        axes.push_back({nb[a], nb[b], 0.5 * (va - vb), err});
+        axes.push_back({nb[a], nb[b], 0.5 * (va - vb), err, 0.0});
       }
     }
     double best = std::numeric_limits<double>::infinity();
     Seed seed;
+    for (Axis& x : axes) x.norm = x.a.norm();
     for (size_t a = 0; a < axes.size(); ++a) {
       for (size_t b = a + 1; b < axes.size(); ++b) {
-        const double na = axes[a].a.norm(), nbn = axes[b].a.norm();
+        const double na = axes[a].norm, nbn = axes[b].norm;
+        // Prefer crosses with the most lattice support, then short and
+        // regular ones (the true lattice steps are the shortest axes):
+        // q = -support + shape. The support is at most 8, so a cross whose
+        // -8 + shape is not below the best q cannot win (rounding is
+        // monotonic: fl(-8 + shape) <= fl(-support + shape)).
+        const double shape = 0.5 * (na + nbn) / nearest * (1.0 + axes[a].err + axes[b].err);
+        if (!(-8 + shape < best)) continue;
         const double c = axes[a].a.dot(axes[b].a) / (na * nbn);
         if (std::abs(c) > 0.8) continue;
         // Lattice support: how many of the 8 further nodes p0 +- a +- b,
@@ -232,25 +360,41 @@ std::vector<Seed> FindSeeds(const Pool& pool, int k) {
             Eigen::Vector2i(1, 1),  Eigen::Vector2i(1, -1), Eigen::Vector2i(-1, 1), Eigen::Vector2i(-1, -1),
             Eigen::Vector2i(2, 0),  Eigen::Vector2i(-2, 0), Eigen::Vector2i(0, 2),  Eigen::Vector2i(0, -2)};
         int support = 0;
-        std::vector<std::pair<int, Eigen::Vector2i>> patch = {
-            {i, Eigen::Vector2i(0, 0)}, {axes[a].plus, Eigen::Vector2i(1, 0)}, {axes[a].minus, Eigen::Vector2i(-1, 0)},
-            {axes[b].plus, Eigen::Vector2i(0, 1)}, {axes[b].minus, Eigen::Vector2i(0, -1)}};
+        std::array<int, 8> found;
+        bool hopeless = false;
         for (int o = 0; o < 8; ++o) {
-          const Eigen::Vector3d target = pool.p[i] + predicted[o];
+          // Even with every remaining node supported, q would not be below
+          // the best: this cross cannot win (monotonic rounding as above).
+          if (!(-(support + 8 - o) + shape < best)) {
+            hopeless = true;
+            break;
+          }
+          const Eigen::Vector3d target = pi + predicted[o];
+          found[o] = -1;
           for (int j = 0; j < k; ++j) {
-            if ((pool.p[nb[j]] - target).squaredNorm() < tol2) {
+            if ((nbp[j] - target).squaredNorm() < tol2) {
               ++support;
-              patch.push_back({nb[j], kOffsets[o]});
+              found[o] = nb[j];
               break;
             }
           }
         }
-        // Prefer crosses with the most lattice support, then short and
-        // regular ones (the true lattice steps are the shortest axes).
-        const double q = -support + 0.5 * (na + nbn) / std::sqrt(dist[0].first) * (1.0 + axes[a].err + axes[b].err);
+        if (hopeless) continue;
+        const double q = -support + shape;
         if (q < best) {
           best = q;
-          seed = {i, axes[a].plus, axes[b].plus, q, patch};
+          seed.p0 = i;
+          seed.pa = axes[a].plus;
+          seed.pb = axes[b].plus;
+          seed.quality = q;
+          seed.patch = {{i, Eigen::Vector2i(0, 0)},
+                        {axes[a].plus, Eigen::Vector2i(1, 0)},
+                        {axes[a].minus, Eigen::Vector2i(-1, 0)},
+                        {axes[b].plus, Eigen::Vector2i(0, 1)},
+                        {axes[b].minus, Eigen::Vector2i(0, -1)}};
+          for (int o = 0; o < 8; ++o) {
+            if (found[o] >= 0) seed.patch.push_back({found[o], kOffsets[o]});
+          }
         }
       }
     }
@@ -383,6 +527,14 @@ class Identifier {
     const int max_count = hist.front().count;
     const double gate = options_.score_gate_fraction * idx.spacing_rad +
                         (options_.directions_nominal ? options_.nominal_tolerance_rad : 0.0);
+    Eigen::Matrix3Xd eligible(3, pool_.size());
+    {
+      Eigen::Index m = 0;
+      for (int i = 0; i < pool_.size(); ++i) {
+        if (Eligible(i, s)) eligible.col(m++) = pool_.p[i];
+      }
+      eligible.conservativeResize(3, m);
+    }
     int checked = 0;
     std::vector<std::pair<Eigen::Vector2i, int>> seen;  // (L0, g) verified
     for (const Hist& h : hist) {
@@ -406,7 +558,7 @@ class Identifier {
       }
       for (int k = 0; k < np; ++k) {
         if (!poses[k].R.allFinite() || !poses[k].t.allFinite()) continue;
-        const int score = Score(s, poses[k], gate);
+        const int score = Score(s, poses[k], gate, eligible);
         if (score >= options_.min_spots) out->push_back({s, poses[k], score, h.L0, true});
       }
     }
@@ -441,15 +593,15 @@ class Identifier {
   }
 
   // Points of source s whose nearest beam under `pose` is within `gate`.
-  int Score(int s, const PoseRt& pose, double gate) const {
+  // `points`: the points eligible for s (3 x m).
+  int Score(int s, const PoseRt& pose, double gate, const Eigen::Matrix3Xd& points) const {
     const PatternIndex& idx = index_[s];
     int count = 0;
-    for (int i = 0; i < pool_.size(); ++i) {
-      if (!Eligible(i, s)) continue;
-      const Eigen::Vector3d q = pose.R * pool_.p[i] + pose.t;
-      if (!(q.x() > 0.0)) continue;
-      double angle;
-      if (idx.Nearest(q, &angle) >= 0 && angle < gate) ++count;
+    const Eigen::Matrix3Xd Q = (pose.R * points).colwise() + pose.t;
+    for (Eigen::Index i = 0; i < Q.cols(); ++i) {
+      const Eigen::Vector3d q = Q.col(i);
+      if (!(q.x() > 0.0) || !idx.MayBeWithin(q, gate)) continue;
+      if (idx.AnyWithin(q, gate)) ++count;
     }
     return count;
   }
@@ -468,7 +620,7 @@ class Identifier {
     for (int i = 0; i < pool_.size(); ++i) {
       if (!Eligible(i, s)) continue;
       const Eigen::Vector3d q = Rt * (pool_.p[i] - t);
-      if (!(q.x() > 0.0)) continue;
+      if (!(q.x() > 0.0) || !idx.MayBeWithin(q, gate)) continue;
       double angle;
       const int node = idx.Nearest(q, &angle);
       if (node < 0 || !(angle < gate) || reserved_[s][node]) continue;

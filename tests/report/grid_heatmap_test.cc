@@ -15,6 +15,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "io/temp_dir.h"
+#include "report/rgb.h"
 
 namespace opl {
 namespace {
@@ -25,21 +26,11 @@ using testing_support::TempDir;
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 // RGB colours the image promises (header and docs/report.md).
-struct Rgb {
-  int r, g, b;
-  bool operator==(const Rgb& o) const { return r == o.r && g == o.g && b == o.b; }
-};
-std::ostream& operator<<(std::ostream& os, const Rgb& c) {
-  return os << "RGB(" << c.r << "," << c.g << "," << c.b << ")";
-}
+using test::PixelAt;
+using test::Rgb;
 const Rgb kViridisTop{253, 231, 37};   // matplotlib viridis(1.0)
 const Rgb kViridisBottom{68, 1, 84};   // matplotlib viridis(0.0)
 const Rgb kNoData{217, 217, 217};
-
-Rgb PixelAt(const cv::Mat& img, int x, int y) {
-  const cv::Vec3b bgr = img.at<cv::Vec3b>(y, x);
-  return Rgb{bgr[2], bgr[1], bgr[0]};
-}
 
 // The viridis colour of `value` on a scale 0..scale_max, straight from OpenCV.
 Rgb ViridisOf(double value, double scale_max) {

@@ -13,6 +13,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "io/temp_dir.h"
+#include "report/rgb.h"
 
 namespace opl {
 namespace {
@@ -22,23 +23,14 @@ using testing_support::TempDir;
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-struct Rgb {
-  int r, g, b;
-  bool operator==(const Rgb& o) const { return r == o.r && g == o.g && b == o.b; }
-};
-std::ostream& operator<<(std::ostream& os, const Rgb& c) {
-  return os << "RGB(" << c.r << "," << c.g << "," << c.b << ")";
-}
+// RGB colours the image promises (header and docs/report.md).
+using test::PixelAt;
+using test::Rgb;
 // Okabe-Ito colours of series 0, 1, 2 (the header promises them).
 const Rgb kBlue{0, 114, 178};
 const Rgb kVermillion{213, 94, 0};
 const Rgb kGreen{0, 158, 115};
 const Rgb kWhiteRgb{255, 255, 255};
-
-Rgb PixelAt(const cv::Mat& img, int x, int y) {
-  const cv::Vec3b bgr = img.at<cv::Vec3b>(y, x);
-  return Rgb{bgr[2], bgr[1], bgr[0]};
-}
 
 cv::Mat Decode(const LinePlot& plot) {
   Result<std::vector<unsigned char>> png = RenderLinePlotPng(plot);

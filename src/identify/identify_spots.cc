@@ -4,7 +4,9 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <sstream>
+#include <tuple>
 
 #include <Eigen/LU>
 
@@ -12,6 +14,7 @@
 #include "opl/geometry/rotation.h"
 #include "opl/locate/locate_source.h"
 #include "opl/locate/p3p.h"
+#include "opl/locate/pose_normal_equations.h"
 
 namespace opl {
 namespace {
@@ -301,6 +304,7 @@ std::vector<Seed> FindSeeds(const Pool& pool, int k) {
   std::vector<std::pair<double, int>> dist(n);
   std::vector<int> nb(k);
   std::vector<Eigen::Vector3d> nbp(k);  // the neighbours' points, contiguous
+  std::vector<double> nbd(k);           // their distances, ascending
   struct Axis {
     int plus, minus;
     Eigen::Vector3d a;
@@ -308,16 +312,70 @@ std::vector<Seed> FindSeeds(const Pool& pool, int k) {
     double norm;
   };
   std::vector<Axis> axes;
+  // The k nearest neighbours of every point, by a sweep along the axis of
+  // the largest extent: the points sorted along it, each point's search
+  // runs outwards in that order and stops on a side once the coordinate gap
+  // alone exceeds the k-th smallest squared distance found.
+  int sweep_axis = 0;
+  {
+    Eigen::Vector3d lo = pool.p[0], hi = pool.p[0];
+    for (const Eigen::Vector3d& p : pool.p) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+    (hi - lo).maxCoeff(&sweep_axis);
+  }
+  std::vector<int> order(n), rank(n);
+  for (int i = 0; i < n; ++i) order[i] = i;
+  std::sort(order.begin(), order.end(), [&](int a, int b) {
+    const double xa = pool.p[a][sweep_axis], xb = pool.p[b][sweep_axis];
+    return xa < xb || (xa == xb && a < b);
+  });
+  for (int r = 0; r < n; ++r) rank[order[r]] = r;
+  std::vector<std::pair<double, int>> heap;
+  heap.reserve(k + 1);
   for (int i = 0; i < n; ++i) {
-    for (int j = 0; j < n; ++j) dist[j] = {j == i ? std::numeric_limits<double>::infinity()
-                                                  : (pool.p[j] - pool.p[i]).squaredNorm(),
-                                           j};
-    // The k smallest (distance, index) pairs, sorted: the keys are unique,
-    // so this is exactly what partial_sort gives, in O(n).
-    std::nth_element(dist.begin(), dist.begin() + (k - 1), dist.end());
-    std::sort(dist.begin(), dist.begin() + k);
+    // The k smallest (squared distance, index) pairs, sorted: the keys are
+    // unique, so this is exactly the k first of all pairs sorted.
+    heap.clear();
+    const double xi = pool.p[i][sweep_axis];
+    auto visit = [&](int j) {
+      const std::pair<double, int> key((pool.p[j] - pool.p[i]).squaredNorm(), j);
+      if (static_cast<int>(heap.size()) < k) {
+        heap.push_back(key);
+        std::push_heap(heap.begin(), heap.end());
+      } else if (key < heap.front()) {
+        std::pop_heap(heap.begin(), heap.end());
+        heap.back() = key;
+        std::push_heap(heap.begin(), heap.end());
+      }
+    };
+    // A side is done when its next point's gap squared exceeds the k-th
+    // smallest so far (every later point on it is at least as far).
+    auto done = [&](int j) {
+      if (static_cast<int>(heap.size()) < k) return false;
+      const double gap = pool.p[j][sweep_axis] - xi;
+      return gap * gap > heap.front().first;
+    };
+    int down = rank[i] - 1, up = rank[i] + 1;
+    while (down >= 0 || up < n) {
+      if (down >= 0) {
+        if (done(order[down])) {
+          down = -1;
+        } else {
+          visit(order[down--]);
+        }
+      }
+      if (up < n) {
+        if (done(order[up])) {
+          up = n;
+        } else {
+          visit(order[up++]);
+        }
+      }
+    }
+    std::sort_heap(heap.begin(), heap.end());
+    std::copy(heap.begin(), heap.end(), dist.begin());
     for (int j = 0; j < k; ++j) nb[j] = dist[j].second;
     for (int j = 0; j < k; ++j) nbp[j] = pool.p[nb[j]];
+    for (int j = 0; j < k; ++j) nbd[j] = std::sqrt(dist[j].first);
     const Eigen::Vector3d pi = pool.p[i];
     const double nearest = std::sqrt(dist[0].first);
     axes.clear();
@@ -328,7 +386,9 @@ std::vector<Seed> FindSeeds(const Pool& pool, int k) {
         const Eigen::Vector3d vb = pool.p[nb[b]] - pool.p[i];
         const double lb = vb.norm();
         const double lmax = std::max(la, lb);
-        if (std::min(la, lb) < 0.5 * lmax) continue;
+        // The neighbours come by ascending distance (la <= lb): once b is
+        // twice as far as a, every later b is too.
+        if (std::min(la, lb) < 0.5 * lmax) break;
         const double err = (va + vb).norm() / lmax;
         if (err > 0.35) continue;
         axes.push_back({nb[a], nb[b], 0.5 * (va - vb), err, 0.0});
@@ -371,7 +431,13 @@ std::vector<Seed> FindSeeds(const Pool& pool, int k) {
           }
           const Eigen::Vector3d target = pi + predicted[o];
           found[o] = -1;
-          for (int j = 0; j < k; ++j) {
+          // A neighbour within tol of the target is within tol of its
+          // distance (triangle inequality): only those are scanned, in the
+          // same order (the margin covers rounding).
+          const double dt = predicted[o].norm();
+          const double tol = std::sqrt(tol2) * (1.0 + 1e-9) + 1e-12 * dt;
+          const int j0 = static_cast<int>(std::lower_bound(nbd.begin(), nbd.end(), dt - tol) - nbd.begin());
+          for (int j = j0; j < k && nbd[j] <= dt + tol; ++j) {
             if ((nbp[j] - target).squaredNorm() < tol2) {
               ++support;
               found[o] = nb[j];
@@ -441,8 +507,19 @@ class Identifier {
     return !pool_.taken[i] && (pool_.only_source[i] < 0 || pool_.only_source[i] == s);
   }
 
-  // Candidate poses of source s from a seed (header comment, step 2).
-  void Candidates(int s, const Seed& seed, std::vector<Candidate>* out) const {
+  // A hypothesis of step 2: the seed point at lattice node L0 of source s,
+  // its patch's offsets mapped by symmetry g; `count` estimates how many
+  // points it explains (the histogram).
+  struct Hypothesis {
+    int source, g;
+    Eigen::Vector2i L0;
+    int count;
+  };
+
+  // The hypotheses of source s from a seed (header comment, step 2): for each
+  // symmetry g, up to 6 nodes L0 with the highest histogram counts (at least
+  // min_spots), appended to `out`.
+  void Hypotheses(int s, const Seed& seed, std::vector<Hypothesis>* out) const {
     const PatternIndex& idx = index_[s];
     if (idx.spacing_rad <= 0.0) return;
     const int n = idx.n;
@@ -451,18 +528,10 @@ class Identifier {
     const std::array<Eigen::Vector3d, 3> f = {idx.Dir(L.x(), L.y()), idx.Dir(L.x() + 1, L.y()),
                                               idx.Dir(L.x(), L.y() + 1)};
     std::array<PoseRt, 4> roots;
-    int num_roots = 0;
-    if (PatchPose(s, seed, L, 0, &roots[0])) {
-      num_roots = 1;
-    } else {
-      num_roots = SolveP3P(f, X, &roots);
-    }
-    struct Hist {
-      int root, g;
-      Eigen::Vector2i L0;
-      int count;
-    };
-    std::vector<Hist> hist;
+    int num_roots = SolveP3P(f, X, &roots);
+    if (PatchPose(s, seed, L, 0, BestOnPatch(s, seed, L, 0, roots, num_roots), &roots[0])) num_roots = 1;
+    using Hist = Hypothesis;
+    std::vector<Hist>& hist = *out;
     std::vector<Eigen::Vector2i> offsets;
     std::vector<int> diff(static_cast<size_t>(n + 1) * (n + 1));
     for (int root = 0; root < num_roots; ++root) {
@@ -508,7 +577,7 @@ class Identifier {
             const int v = diff[r * (n + 1) + c];
             if (v <= top[5].count) continue;
             if (!idx.Has(c, r)) continue;
-            Hist h{root, g, Eigen::Vector2i(c, r), v};
+            Hist h{s, g, Eigen::Vector2i(c, r), v};
             int k = 5;
             while (k > 0 && top[k - 1].count < v) {
               top[k] = top[k - 1];
@@ -522,51 +591,112 @@ class Identifier {
         }
       }
     }
-    if (hist.empty()) return;
-    std::stable_sort(hist.begin(), hist.end(), [](const Hist& a, const Hist& b) { return a.count > b.count; });
-    const int max_count = hist.front().count;
-    const double gate = options_.score_gate_fraction * idx.spacing_rad +
-                        (options_.directions_nominal ? options_.nominal_tolerance_rad : 0.0);
-    Eigen::Matrix3Xd eligible(3, pool_.size());
-    {
-      Eigen::Index m = 0;
-      for (int i = 0; i < pool_.size(); ++i) {
-        if (Eligible(i, s)) eligible.col(m++) = pool_.p[i];
+  }
+
+  // Candidate poses from the hypotheses of every source (header comment,
+  // step 2), checked exactly in the order of their counts (the sources'
+  // lists merged): per source, those with at least half its highest count,
+  // at most 48. The counts estimate the exact scores (from above when other
+  // grids overlap): once the best pose so far scores as many points as the
+  // next count, or as that source's pattern has beams, the rest are not
+  // expected to do better, and `clear` is asked whether it settles the seed
+  // (a clear refinement; a symmetric or cross-source rival is examined in
+  // step 4 regardless). When it does, the check stops there.
+  template <typename ClearFn>
+  void Candidates(const Seed& seed, std::vector<Hypothesis> hyps, std::vector<Candidate>* out,
+                  ClearFn&& clear) const {
+    if (hyps.empty()) return;
+    std::stable_sort(hyps.begin(), hyps.end(),
+                     [](const Hypothesis& a, const Hypothesis& b) { return a.count > b.count; });
+    const int num_sources = static_cast<int>(index_.size());
+    std::vector<int> max_count(num_sources, -1), checked(num_sources, 0);
+    std::vector<Eigen::Matrix3Xd> eligible(num_sources);
+    for (const Hypothesis& h : hyps) max_count[h.source] = std::max(max_count[h.source], h.count);
+    const std::array<Eigen::Vector3d, 3> X = {pool_.p[seed.p0], pool_.p[seed.pa], pool_.p[seed.pb]};
+    int best_score = -1, stop_tried = -1;
+    size_t best = 0;  // index in `out` of the best-scoring candidate
+    std::vector<std::tuple<int, Eigen::Vector2i, int>> seen;  // (source, L0, g) verified
+    for (const Hypothesis& h : hyps) {
+      const int s = h.source;
+      const PatternIndex& idx = index_[s];
+      const int num_beams = static_cast<int>(idx.pattern->beams().size());
+      if (best_score >= std::min(h.count, num_beams) && best_score > stop_tried) {
+        stop_tried = best_score;
+        if (clear(out->at(best))) return;
       }
-      eligible.conservativeResize(3, m);
-    }
-    int checked = 0;
-    std::vector<std::pair<Eigen::Vector2i, int>> seen;  // (L0, g) verified
-    for (const Hist& h : hist) {
-      if (h.count < 0.5 * max_count || checked >= 48) break;
+      if (h.count < 0.5 * max_count[s] || checked[s] >= 48) continue;
       bool dup = false;
-      for (const auto& sv : seen) dup |= (sv.first == h.L0 && sv.second == h.g);
+      for (const auto& sv : seen) dup |= (std::get<0>(sv) == s && std::get<1>(sv) == h.L0 && std::get<2>(sv) == h.g);
       if (dup) continue;
-      seen.push_back({h.L0, h.g});
+      seen.emplace_back(s, h.L0, h.g);
       const Eigen::Vector2i e1 = Apply(h.g, Eigen::Vector2i(1, 0)), e2 = Apply(h.g, Eigen::Vector2i(0, 1));
       const Eigen::Vector2i A = h.L0 + e1, B = h.L0 + e2;
       if (!idx.Has(A.x(), A.y()) || !idx.Has(B.x(), B.y())) continue;
-      ++checked;
+      ++checked[s];
+      if (eligible[s].cols() == 0) {
+        eligible[s].resize(3, pool_.size());
+        Eigen::Index m = 0;
+        for (int i = 0; i < pool_.size(); ++i) {
+          if (Eligible(i, s)) eligible[s].col(m++) = pool_.p[i];
+        }
+        eligible[s].conservativeResize(3, m);
+      }
+      const double gate = options_.score_gate_fraction * idx.spacing_rad +
+                          (options_.directions_nominal ? options_.nominal_tolerance_rad : 0.0);
       const std::array<Eigen::Vector3d, 3> fb = {idx.Dir(h.L0.x(), h.L0.y()), idx.Dir(A.x(), A.y()),
                                                  idx.Dir(B.x(), B.y())};
       std::array<PoseRt, 4> poses;
-      int np = 0;
-      if (PatchPose(s, seed, h.L0, h.g, &poses[0])) {
-        np = 1;
-      } else {
-        np = SolveP3P(fb, X, &poses);
-      }
+      int np = SolveP3P(fb, X, &poses);
+      if (PatchPose(s, seed, h.L0, h.g, BestOnPatch(s, seed, h.L0, h.g, poses, np), &poses[0])) np = 1;
       for (int k = 0; k < np; ++k) {
         if (!poses[k].R.allFinite() || !poses[k].t.allFinite()) continue;
-        const int score = Score(s, poses[k], gate, eligible);
-        if (score >= options_.min_spots) out->push_back({s, poses[k], score, h.L0, true});
+        const int score = Score(s, poses[k], gate, eligible[s]);
+        if (score >= options_.min_spots) {
+          if (score > best_score) best = out->size();
+          out->push_back({s, poses[k], score, h.L0, true});
+        }
+        best_score = std::max(best_score, score);
       }
     }
   }
 
+  // Of the P3P poses of the seed's cross, the one that puts the most patch
+  // points near their beams L0 + g offset (chord below kGuessGateSpacings
+  // spacings), when it puts at least 90% of them there: a pose to start
+  // PatchPose from. nullptr when none does.
+  static constexpr double kGuessGateSpacings = 0.25;
+  const PoseRt* BestOnPatch(int s, const Seed& seed, const Eigen::Vector2i& L0, int g,
+                            const std::array<PoseRt, 4>& poses, int num_poses) const {
+    const PatternIndex& idx = index_[s];
+    const double gate = kGuessGateSpacings * idx.spacing_rad;
+    const PoseRt* best = nullptr;
+    int best_count = -1, used = 0;
+    for (int k = 0; k < num_poses; ++k) {
+      const PoseRt& P = poses[k];
+      if (!P.R.allFinite() || !P.t.allFinite()) continue;
+      int count = 0;
+      used = 0;
+      for (const auto& [i, o] : seed.patch) {
+        const Eigen::Vector2i l = L0 + Apply(g, o);
+        if (!idx.Has(l.x(), l.y()) || !Eligible(i, s)) continue;
+        ++used;
+        const Eigen::Vector3d q = P.R * pool_.p[i] + P.t;
+        if (q.x() > 0.0 && (q.normalized() - idx.Dir(l.x(), l.y())).squaredNorm() < gate * gate) ++count;
+      }
+      if (count > best_count) {
+        best_count = count;
+        best = &P;
+      }
+    }
+    return best != nullptr && best_count >= 0.9 * used ? best : nullptr;
+  }
+
   // The pose of source s that maps the seed's patch onto the beams
-  // L0 + g offset (LocateSource over the patch); false when it fails.
-  bool PatchPose(int s, const Seed& seed, const Eigen::Vector2i& L0, int g, PoseRt* pose) const {
+  // L0 + g offset; false when it fails. From `guess` (BestOnPatch): a
+  // least-squares fit of the patch's points that fit the guess within its
+  // gate (FitPatch). Without a guess: LocateSource over the patch (RANSAC).
+  bool PatchPose(int s, const Seed& seed, const Eigen::Vector2i& L0, int g, const PoseRt* guess,
+                 PoseRt* pose) const {
     const PatternIndex& idx = index_[s];
     std::vector<SpotObservation> obs;
     for (const auto& [i, o] : seed.patch) {
@@ -578,11 +708,15 @@ class Identifier {
       obs.push_back(so);
     }
     if (obs.size() < 6) return false;
+    if (guess != nullptr) return FitPatch(idx, obs, *guess, pose);
     LocateOptions lo;
     lo.ransac_seed = options_.seed;
     // The patch's points are nearly all inliers when the hypothesis is
     // right: a few minimal samples suffice; a wrong one fails fast.
     lo.ransac_max_iterations = 20;
+    // The pose only has to place the spots to a fraction of the spacing
+    // (Score's gate; Refine solves again): 1e-5 of the range is plenty.
+    lo.parameter_tolerance = 1e-5;
     lo.ransac_inlier_threshold_rad = 0.05 * idx.spacing_rad;
     auto located = LocateSource(*idx.pattern, obs, lo);
     if (!located.ok()) return false;
@@ -590,6 +724,79 @@ class Identifier {
     pose->R = R.transpose();
     pose->t = -(R.transpose() * located->scene_from_source.translation);
     return true;
+  }
+
+  // Least squares of the angle residuals (PoseNormalEquations, unweighted)
+  // over the observations within the guess gate of `guess`; then, as
+  // LocateSource does, the observations beyond 5 robust sigmas of the fitted
+  // pose are left out and the fit repeated until that set is stable (at most
+  // 6 fits). The pose only places spots to a fraction of the spacing for
+  // Score and seeds Refine, which solves again: a step below 1e-5 of the
+  // range ends each solve. False when fewer than 6 observations, or under
+  // half of them, remain, or a solve fails.
+  bool FitPatch(const PatternIndex& idx, const std::vector<SpotObservation>& obs, const PoseRt& guess,
+                PoseRt* pose) const {
+    Eigen::Matrix3d R = guess.R.transpose();  // scene_from_source
+    Eigen::Vector3d t = -(R * guess.t);
+    const int m = static_cast<int>(obs.size());
+    std::vector<char> use(m), next(m);
+    std::vector<double> chord(m);
+    auto chords = [&]() {
+      const Eigen::Matrix3d Rt = R.transpose();
+      for (int k = 0; k < m; ++k) {
+        const Eigen::Vector3d q = Rt * (obs[k].point_in_scene - t);
+        chord[k] = q.x() > 0.0 ? (q.normalized() - idx.pattern->DirectionInSource(obs[k].beam_id)).norm()
+                               : std::numeric_limits<double>::infinity();
+      }
+    };
+    chords();
+    const double guess_gate = kGuessGateSpacings * idx.spacing_rad;
+    for (int k = 0; k < m; ++k) use[k] = chord[k] < guess_gate;
+    std::vector<double> inlier;
+    for (int round = 0; round < 6; ++round) {
+      int used = 0;
+      double D = 0.0;
+      for (int k = 0; k < m; ++k) {
+        if (use[k]) ++used, D += (obs[k].point_in_scene - t).norm();
+      }
+      if (used < 6 || 2 * used < m) return false;
+      D /= used;
+      const Eigen::Vector3d offset(D, 0.0, 0.0);
+      patch_problem_.Reset(R, t - offset, D);
+      for (int k = 0; k < m; ++k) {
+        if (!use[k]) continue;
+        patch_problem_.AddSpot(obs[k].point_in_scene,
+                               BeamAngles::FromDirection(idx.pattern->DirectionInSource(obs[k].beam_id)),
+                               Eigen::Matrix2d::Identity());
+      }
+      Eigen::Matrix<double, 6, 1> x;
+      x << 0.0, 0.0, 0.0, offset;
+      PoseSolverOptions so;
+      so.max_num_iterations = 20;
+      so.function_tolerance = std::numeric_limits<double>::min();  // step test only
+      so.parameter_tolerance = 1e-5;
+      so.cost_threshold = 0.0;
+      so.initial_trust_region_radius = 1e12;  // close to Gauss-Newton (as LocateSource)
+      const PoseSolverSummary summary = SolvePoseLevenbergMarquardt(patch_problem_, so, &x);
+      if (summary.evaluation_failed || !x.allFinite() || !std::isfinite(summary.final_cost)) return false;
+      R = patch_problem_.Rotation(x.data());
+      t = patch_problem_.Origin(x.data());
+      // Outliers as LocateSource flags them: beyond 5 robust sigmas (the
+      // median chord of a 2D Gaussian is 1.1774 sigma).
+      chords();
+      inlier.clear();
+      for (int k = 0; k < m; ++k) {
+        if (use[k]) inlier.push_back(chord[k]);
+      }
+      std::nth_element(inlier.begin(), inlier.begin() + inlier.size() / 2, inlier.end());
+      const double gate = std::max(5.0 * inlier[inlier.size() / 2] / 1.1774100225154747, 1e-7);
+      for (int k = 0; k < m; ++k) next[k] = chord[k] <= gate;
+      if (next == use) break;
+      use = next;
+    }
+    pose->R = R.transpose();
+    pose->t = -(R.transpose() * t);
+    return pose->R.allFinite() && pose->t.allFinite();
   }
 
   // Points of source s whose nearest beam under `pose` is within `gate`.
@@ -877,6 +1084,7 @@ class Identifier {
   Pool& pool_;
   const std::vector<std::vector<char>>& reserved_;
   std::vector<PatternIndex> index_;
+  mutable PoseNormalEquations patch_problem_;  // FitPatch's scratch (one thread)
 };
 
 // True when a and b give (mostly) the same correspondence.
@@ -1138,16 +1346,30 @@ Result<IdentifyResult> IdentifySpots(const ModuleCalibration& calibration, const
     skip |= pool.blocked[seed.p0];
     if (skip) continue;
     ++tried;
-    std::vector<Candidate> candidates;
+    std::vector<Identifier::Hypothesis> hypotheses;
     for (int s = 0; s < num_sources; ++s) {
       if (done[s]) continue;
       bool allowed = true;
       for (int i : sp) allowed &= pool.only_source[i] < 0 || pool.only_source[i] == s;
-      if (allowed) identifier.Candidates(s, seed, &candidates);
+      if (allowed) identifier.Hypotheses(s, seed, &hypotheses);
     }
+    std::vector<Candidate> candidates;
+    // A candidate that refines clearly (noise well below the acceptance
+    // limit) is the grid: its symmetric and cross-source alternatives are
+    // examined next (step 4), so no other candidate needs refining.
+    std::optional<Detection> settled;
+    identifier.Candidates(seed, std::move(hypotheses), &candidates, [&](const Candidate& c) {
+      Detection d;
+      if (!identifier.Refine(c, &d) || d.sigma > 0.25 * identifier.MaxSigma(d.source)) return false;
+      settled = std::move(d);
+      return true;
+    });
     if (candidates.empty()) continue;
-    std::stable_sort(candidates.begin(), candidates.end(),
-                     [](const Candidate& a, const Candidate& b) { return a.score > b.score; });
+    // Best score first; among equal scores, by source, then in the order
+    // each source's hypotheses were checked.
+    std::stable_sort(candidates.begin(), candidates.end(), [](const Candidate& a, const Candidate& b) {
+      return a.score > b.score || (a.score == b.score && a.source < b.source);
+    });
     // Distinct poses only (the same hypothesis is reached from several
     // symmetries, nodes and roots), the best-scoring first.
     std::vector<const Candidate*> distinct;
@@ -1176,6 +1398,10 @@ Result<IdentifyResult> IdentifySpots(const ModuleCalibration& calibration, const
       }
       detections.push_back(std::move(d));
     };
+    if (settled) {
+      distinct.clear();
+      add(std::move(*settled));
+    }
     for (const Candidate* cp : distinct) {
       Detection d;
       const bool ok = identifier.Refine(*cp, &d);

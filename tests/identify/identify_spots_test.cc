@@ -92,6 +92,10 @@ TEST(IdentifySpots, RandomScenesNoWrongAssignment) {
   Tally t;
   std::map<std::string, int> by_surface;
   double worst_ms = 0.0, total_ms = 0.0;
+  // OPL_IDENTIFY_DUMP=<file>: every scene's assignments and outcomes, one
+  // line per scene, to compare two versions of the algorithm spot by spot.
+  const char* dump_path = std::getenv("OPL_IDENTIFY_DUMP");
+  std::FILE* dump = dump_path != nullptr ? std::fopen(dump_path, "w") : nullptr;
   for (int k = 0; k < scenes; ++k) {
     const test::IdentifyScene scene = test::MakeIdentifyScene(1000 + k);
     ++by_surface[scene.surface];
@@ -103,7 +107,14 @@ TEST(IdentifySpots, RandomScenesNoWrongAssignment) {
     ASSERT_TRUE(r.ok()) << r.status().ToString();
     ASSERT_EQ(r->source_index.size(), scene.spots.size());
     Check(scene, *r, &t, "scene " + std::to_string(1000 + k));
+    if (dump != nullptr) {
+      std::fprintf(dump, "%d", 1000 + k);
+      for (const IdentifiedSource& s : r->sources) std::fprintf(dump, " %s", IdentifyOutcomeName(s.outcome));
+      for (size_t i = 0; i < scene.spots.size(); ++i) std::fprintf(dump, " %d:%d", r->source_index[i], r->beam_id[i]);
+      std::fprintf(dump, "\n");
+    }
   }
+  if (dump != nullptr) std::fclose(dump);
   const double recall = static_cast<double>(t.correct) / t.real;
   std::printf(
       "identify: %d scenes (%d real spots, %d spurious points): %d wrong assignments, "

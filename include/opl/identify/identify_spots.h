@@ -22,15 +22,20 @@
 //     "cross" of the lattice) and its patch (the cross plus the points found
 //     at p0 +- a +- b, p0 +- 2a, p0 +- 2b); best supported first.
 //  2. Hypotheses. The patch is taken as lattice nodes L + g o (o its offsets,
-//     g one of the 8 symmetries of the square). LocateSource on the patch at
-//     the central node gives a pose; every point is mapped through it to
+//     g one of the 8 symmetries of the square). The patch's pose at the
+//     central node gives a pose; every point is mapped through it to
 //     continuous lattice coordinates (an affine lattice model fitted to the
 //     pattern: tangent angles for equal-angle patterns, direction cosines for
 //     gratings) and the integer offsets from p0 are histogrammed; for each g
 //     the nodes L that put most offsets inside the pattern (2D prefix sums)
-//     are candidates, checked exactly: the patch located at (L, g), the pose
-//     scored by the points whose nearest beam (looked up through the lattice
-//     model, 3 x 3 nodes) is within `score_gate_fraction` of the spacing.
+//     are hypotheses. Those of all sources, merged by count, are checked
+//     exactly: the patch's pose at (L, g), scored by the points whose nearest
+//     beam (looked up through the lattice model, 3 x 3 nodes) is within
+//     `score_gate_fraction` of the spacing. Once the best score reaches the
+//     next count (or its pattern's beam count) that pose is refined (step 3);
+//     a clear refinement settles the seed. The patch's pose: a least-squares
+//     fit started from the best P3P pose of the seed's cross, or LocateSource
+//     with RANSAC when no P3P pose fits 90% of the patch.
 //  3. Refinement. The best distinct candidates grow from the seed: points in
 //     the loose gate within 2, 3, 5, 8 nodes, then all, LocateSource after
 //     each stage; then the gate shrinks to assign_gate_sigma * sigma (sigma:

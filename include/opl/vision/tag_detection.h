@@ -1,0 +1,103 @@
+// AprilTag (tag36h11) detection with sub-pixel corners
+// (docs/targets_and_calibration.md has the model and the measured figures).
+//
+// The tag. A tag36h11 marker is 8 x 8 cells: 6 x 6 data bits inside a black
+// border one cell wide, and needs a white quiet zone around it (at least one
+// cell). Its CORNERS are the outer corners of the black square. Corner order
+// (TagDetection::corners_px, TagBoard::TagCorners, lab/planar_target_image.h)
+// is the order of cv::aruco: as the tag is printed (cv::aruco::drawMarker's
+// image), 0 = top-left, 1 = top-right, 2 = bottom-right, 3 = bottom-left;
+// seen upright in an image (v down) this runs clockwise. The TAG FRAME has its
+// origin at the centre of the black square, x to the right and y down as
+// printed, z = x cross y (into the tag, away from the viewer); with side s the
+// corners are (-s/2, -s/2), (s/2, -s/2), (s/2, s/2), (-s/2, s/2), z = 0.
+//
+// The detector. Candidates and ids come from OpenCV's aruco module with the
+// DICT_APRILTAG_36h11 dictionary (contour quads, more adaptive-threshold
+// windows than aruco's default); the corners are then refined by an edge fit
+// of our own (TagCornerRefinement::kEdgeFit, the default), because no OpenCV
+// refinement reaches 0.05 px on blurred, distorted images (figures in the
+// doc; the others are kept for comparison). Each of the four
+// edges of the black square is fitted, over the pixels of a band around it
+// (away from the corners), by the model of a blurred step,
+//   I(p) = a + b Phi(d(p) / sigma),  d(p) = cos(t) x + sin(t) y - c + kappa s^2,
+// (a, b: the two levels, sigma: the edge spread, t, c: the line, kappa: its
+// curvature, which absorbs lens distortion; s: position along the edge) by
+// Levenberg-Marquardt; each corner is the intersection of its two edge curves. The
+// corner covariance is propagated from the two fits' covariances
+// (residual variance x (J^T J)^-1): a first-order estimate for white pixel
+// noise, which does not include model error (see the doc for how it compares
+// with the actual error).
+//
+// A 16-bit image is fitted at full depth; aruco sees it stretched to 8 bits
+// by its maximum.
+//
+// Errors (Status, never an abort): an empty image, an image that is not
+// single-channel 8- or 16-bit (CV_8UC1, CV_16UC1; 3-channel 8-bit BGR is
+// converted to gray), bad options. Finding no tag is not an error (an empty
+// list).
+#pragma once
+
+#include <array>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+
+#include "opl/core/status.h"
+
+namespace opl {
+
+enum class TagCornerRefinement {
+  kNone,           // aruco's contour quads, unrefined (CORNER_REFINE_NONE)
+  kOpenCvSubpix,   // aruco's contour quads refined by cornerSubPix (CORNER_REFINE_SUBPIX)
+  kOpenCvAprilTag, // aruco's AprilTag-2 quads (CORNER_REFINE_APRILTAG; ~20x slower)
+  kEdgeFit,        // aruco's contour quads refined by the edge-model fit above (default)
+};
+
+struct TagDetectionOptions {
+  TagCornerRefinement refinement = TagCornerRefinement::kEdgeFit;
+  // Tags whose side (mean edge length) is shorter are ignored [px], >= 8.
+  double min_tag_side_px = 12.0;
+  // Edge fit: pixels closer than this to a corner (along the edge) are not
+  // used, so the fit sees one straight-ish step only [px], >= 1.
+  double edge_corner_exclusion_px = 2.5;
+  // Edge fit: half-width of the band fitted around each edge, as a fraction
+  // of a cell (side / 8); the band must stay inside the black border and the
+  // quiet zone, in (0, 0.9].
+  double edge_band_cells = 0.6;
+  // Edge fit: upper bound of that half-width [px], >= 1; 4 px holds the
+  // blurred step of a PSF sigma up to ~1.3 px and bounds the cost on large tags.
+  double max_edge_band_px = 4.0;
+  // Edge fit: a fit whose edge spread sigma exceeds this is rejected and the
+  // tag dropped [px], > 0.
+  double max_edge_sigma_px = 4.0;
+  // Maximum number of bit errors corrected in the id (aruco's
+  // errorCorrectionRate is set from it; a tag whose data cells, re-read
+  // through the refined corners, differ from the code in more bits is
+  // dropped), in [0, 5].
+  int max_hamming = 2;
+  // OpenCV's cornerSubPix half window for kOpenCvSubpix [px], >= 1.
+  int subpix_half_window_px = 3;
+
+  Status Validate() const;
+};
+
+struct TagDetection {
+  int id = 0;                                  // tag36h11 id
+  std::array<Eigen::Vector2d, 4> corners_px;   // corner order above
+  // Covariance of each corner [px^2] (edge fit only; zero otherwise).
+  std::array<Eigen::Matrix2d, 4> corner_covariance_px2;
+  int hamming = 0;            // bits corrected to read the id
+  double edge_contrast = 0.0; // fitted step b (white - black) [grey levels of the input], edge fit only
+  double edge_sigma_px = 0.0; // mean fitted edge spread [px], edge fit only
+  double edge_rms = 0.0;      // RMS residual of the edge fits [grey levels], edge fit only
+};
+
+// Detects the tag36h11 tags in a grayscale image (see above). Tags are
+// returned in increasing id; an id seen twice is returned twice.
+Result<std::vector<TagDetection>> DetectTags(const cv::Mat& image,
+                                             const TagDetectionOptions& options = {});
+
+}  // namespace opl

@@ -1,0 +1,857 @@
+#include "opl/vision/spot_detection.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <sstream>
+#include <vector>
+
+#include <Eigen/Dense>
+#include <opencv2/imgproc.hpp>
+
+#include "opl/core/format.h"
+
+namespace opl {
+namespace {
+
+// A coarse grid of per-block values, interpolated bilinearly between block
+// centres (clamped beyond the outer centres).
+class BlockGrid {
+ public:
+  BlockGrid(cv::Mat values, int block_px, int width, int height)
+      : values_(std::move(values)), block_(block_px), width_(width), height_(height) {}
+
+  double At(double u, double v) const {
+    double bx, by;
+    int x0, y0, x1, y1;
+    Coordinate(u, width_, values_.cols, &x0, &x1, &bx);
+    Coordinate(v, height_, values_.rows, &y0, &y1, &by);
+    const double a = values_.at<float>(y0, x0), b = values_.at<float>(y0, x1);
+    const double c = values_.at<float>(y1, x0), d = values_.at<float>(y1, x1);
+    return (1 - by) * ((1 - bx) * a + bx * b) + by * ((1 - bx) * c + bx * d);
+  }
+
+  // Values of row v at every column, into `out` (size width). The column
+  // interpolation table is built on the first call.
+  void Row(int v, std::vector<float>* out) {
+    if (col_t_.empty()) {
+      col_i0_.resize(static_cast<size_t>(width_));
+      col_i1_.resize(static_cast<size_t>(width_));
+      col_t_.resize(static_cast<size_t>(width_));
+      for (int u = 0; u < width_; ++u) {
+        const size_t k = static_cast<size_t>(u);
+        Coordinate(u, width_, values_.cols, &col_i0_[k], &col_i1_[k], &col_t_[k]);
+      }
+    }
+    double by;
+    int y0, y1;
+    Coordinate(v, height_, values_.rows, &y0, &y1, &by);
+    row_.resize(static_cast<size_t>(values_.cols));
+    for (int x = 0; x < values_.cols; ++x) {
+      row_[static_cast<size_t>(x)] =
+          (1 - by) * values_.at<float>(y0, x) + by * values_.at<float>(y1, x);
+    }
+    out->resize(static_cast<size_t>(width_));
+    for (size_t u = 0; u < static_cast<size_t>(width_); ++u) {
+      (*out)[u] = static_cast<float>((1 - col_t_[u]) * row_[static_cast<size_t>(col_i0_[u])] +
+                                     col_t_[u] * row_[static_cast<size_t>(col_i1_[u])]);
+    }
+  }
+
+ private:
+  // Block b covers [b B, min((b+1) B, size)); its centre is the midpoint.
+  double Centre(int b, int size) const {
+    const int lo = b * block_;
+    const int hi = std::min((b + 1) * block_, size);
+    return 0.5 * (lo + hi - 1);
+  }
+  void Coordinate(double p, int size, int n, int* i0, int* i1, double* t) const {
+    if (n == 1 || p <= Centre(0, size)) {
+      *i0 = *i1 = 0;
+      *t = 0;
+      return;
+    }
+    if (p >= Centre(n - 1, size)) {
+      *i0 = *i1 = n - 1;
+      *t = 0;
+      return;
+    }
+    int b = std::min(n - 2, static_cast<int>(p / block_));
+    if (p < Centre(b, size)) --b;
+    b = std::clamp(b, 0, n - 2);
+    *i0 = b;
+    *i1 = b + 1;
+    const double c0 = Centre(b, size), c1 = Centre(b + 1, size);
+    *t = std::clamp((p - c0) / (c1 - c0), 0.0, 1.0);
+  }
+
+  cv::Mat values_;  // CV_32F
+  int block_;
+  int width_, height_;
+  std::vector<int> col_i0_, col_i1_;
+  std::vector<double> col_t_, row_;
+};
+
+// One row of a CV_8U or CV_16U image, read as float.
+class PixRow {
+ public:
+  PixRow(const cv::Mat& m, int y)
+      : u8_(m.depth() == CV_8U ? m.ptr<uint8_t>(y) : nullptr),
+        u16_(m.depth() == CV_8U ? nullptr : m.ptr<uint16_t>(y)) {}
+  float operator[](int x) const { return u8_ != nullptr ? u8_[x] : u16_[x]; }
+
+ private:
+  const uint8_t* u8_;
+  const uint16_t* u16_;
+};
+
+double Median(std::vector<float>* v) {
+  if (v->empty()) return 0.0;
+  const size_t mid = v->size() / 2;
+  std::nth_element(v->begin(), v->begin() + static_cast<std::ptrdiff_t>(mid), v->end());
+  return (*v)[mid];
+}
+
+// The background near one spot as a plane through the block grid's value at
+// a centre and its slopes over +-16 px: evaluating the grid per pixel costs
+// more than the rest of the spot's work, and over a window the grid is
+// (piecewise) linear anyway.
+class LocalBackground {
+ public:
+  LocalBackground(const BlockGrid& grid, double u, double v) : u_(u), v_(v) {
+    b0_ = grid.At(u, v);
+    gu_ = (grid.At(u + 16, v) - grid.At(u - 16, v)) / 32.0;
+    gv_ = (grid.At(u, v + 16) - grid.At(u, v - 16)) / 32.0;
+  }
+  double At(double u, double v) const { return b0_ + gu_ * (u - u_) + gv_ * (v - v_); }
+
+ private:
+  double u_, v_, b0_, gu_, gv_;
+};
+
+struct Window {
+  int x0, y0, x1, y1;  // inclusive
+  bool clipped;
+};
+
+Window MakeWindow(double u, double v, int half, int width, int height) {
+  const int cu = static_cast<int>(std::lround(u));
+  const int cv_ = static_cast<int>(std::lround(v));
+  Window w{cu - half, cv_ - half, cu + half, cv_ + half, false};
+  if (w.x0 < 0 || w.y0 < 0 || w.x1 >= width || w.y1 >= height) w.clipped = true;
+  w.x0 = std::max(w.x0, 0);
+  w.y0 = std::max(w.y0, 0);
+  w.x1 = std::min(w.x1, width - 1);
+  w.y1 = std::min(w.y1, height - 1);
+  return w;
+}
+
+struct CentroidResult {
+  double u = 0, v = 0, flux = 0, peak = 0;
+  Eigen::Matrix2d shape = Eigen::Matrix2d::Zero();
+  Eigen::Matrix2d covariance = Eigen::Matrix2d::Zero();
+  bool ok = false;
+};
+
+// Intensity-weighted centroid of (image - background) over window w.
+CentroidResult Centroid(const cv::Mat& img, const LocalBackground& bg, const Window& w, double noise,
+                        double gain) {
+  CentroidResult r;
+  double s = 0, su = 0, sv = 0, suu = 0, suv = 0, svv = 0, peak = -1e300;
+  for (int y = w.y0; y <= w.y1; ++y) {
+    const PixRow row(img, y);
+    for (int x = w.x0; x <= w.x1; ++x) {
+      const double val = row[x] - bg.At(x, y);
+      s += val;
+      su += val * x;
+      sv += val * y;
+      suu += val * x * x;
+      suv += val * x * y;
+      svv += val * y * y;
+      peak = std::max(peak, val);
+    }
+  }
+  if (!(s > 0)) return r;
+  r.u = su / s;
+  r.v = sv / s;
+  r.flux = s;
+  r.peak = peak;
+  r.shape << suu / s - r.u * r.u, suv / s - r.u * r.v, suv / s - r.u * r.v, svv / s - r.v * r.v;
+  // Propagated noise: du/dI_i = (x_i - u) / F.
+  double cuu = 0, cuv = 0, cvv = 0;
+  for (int y = w.y0; y <= w.y1; ++y) {
+    const PixRow row(img, y);
+    for (int x = w.x0; x <= w.x1; ++x) {
+      double var = noise * noise;
+      if (gain > 0) var += std::max(0.0, row[x] - bg.At(x, y)) / gain;
+      const double du = x - r.u, dv = y - r.v;
+      cuu += du * du * var;
+      cuv += du * dv * var;
+      cvv += dv * dv * var;
+    }
+  }
+  r.covariance << cuu, cuv, cuv, cvv;
+  r.covariance /= s * s;
+  r.ok = std::isfinite(r.u) && std::isfinite(r.v);
+  return r;
+}
+
+struct FitResult {
+  double u = 0, v = 0, amplitude = 0, background = 0, reduced_chi2 = 0;
+  double speckle_gamma = 0;  // multiplicative noise fraction used in the weights (0: none)
+  double speckle_grain = 0;  // its correlation length estimated from the residuals [px]
+  Eigen::Matrix<double, 7, 1> theta = Eigen::Matrix<double, 7, 1>::Zero();
+  Eigen::Matrix2d shape = Eigen::Matrix2d::Zero();
+  Eigen::Matrix2d covariance = Eigen::Matrix2d::Zero();
+  bool ok = false;
+};
+
+struct Pixel {
+  double x, y, value, weight;
+};
+
+// Model b + A exp(-q/2), q = d^T P d; theta = (u0, v0, A, b, P11, P12, P22).
+using Vec7 = Eigen::Matrix<double, 7, 1>;
+using Mat7 = Eigen::Matrix<double, 7, 7>;
+
+double Cost(const std::vector<Pixel>& px, const Vec7& t) {
+  double c = 0;
+  for (const Pixel& p : px) {
+    const double du = p.x - t(0), dv = p.y - t(1);
+    const double q = t(4) * du * du + 2 * t(5) * du * dv + t(6) * dv * dv;
+    const double r = p.value - (t(3) + t(2) * std::exp(-0.5 * q));
+    c += p.weight * r * r;
+  }
+  return c;
+}
+
+void Normal(const std::vector<Pixel>& px, const Vec7& t, Mat7* H, Vec7* g) {
+  H->setZero();
+  g->setZero();
+  Vec7 j;
+  for (const Pixel& p : px) {
+    const double du = p.x - t(0), dv = p.y - t(1);
+    const double q = t(4) * du * du + 2 * t(5) * du * dv + t(6) * dv * dv;
+    const double e = std::exp(-0.5 * q);
+    const double Ae = t(2) * e;
+    const double r = p.value - (t(3) + Ae);
+    j(0) = Ae * (t(4) * du + t(5) * dv);
+    j(1) = Ae * (t(5) * du + t(6) * dv);
+    j(2) = e;
+    j(3) = 1.0;
+    j(4) = -0.5 * Ae * du * du;
+    j(5) = -Ae * du * dv;
+    j(6) = -0.5 * Ae * dv * dv;
+    H->selfadjointView<Eigen::Lower>().rankUpdate(j, p.weight);
+    g->noalias() += p.weight * r * j;
+  }
+  *H = H->selfadjointView<Eigen::Lower>();
+}
+
+bool Admissible(const Vec7& t) {
+  return t.allFinite() && t(2) > 0 && t(4) > 0 && t(6) > 0 && t(4) * t(6) - t(5) * t(5) > 0;
+}
+
+FitResult FitGaussian(const std::vector<Pixel>& px, const Vec7& start, const Window& w,
+                      int max_iterations) {
+  FitResult out;
+  if (px.size() < 12 || !Admissible(start)) return out;
+  Vec7 t = start;
+  double cost = Cost(px, t);
+  double lambda = 1e-3;
+  Mat7 H;
+  Vec7 g;
+  bool converged = false;
+  for (int it = 0; it < max_iterations && !converged; ++it) {
+    Normal(px, t, &H, &g);
+    bool improved = false;
+    for (int tries = 0; tries < 12 && !improved; ++tries) {
+      Mat7 A = H;
+      for (int i = 0; i < 7; ++i) A(i, i) += lambda * std::max(H(i, i), 1e-12);
+      const Vec7 step = A.ldlt().solve(g);
+      const Vec7 trial = t + step;
+      if (!step.allFinite() || !Admissible(trial)) {
+        lambda *= 10;
+        continue;
+      }
+      const double trial_cost = Cost(px, trial);
+      if (trial_cost <= cost) {
+        const double decrease = cost - trial_cost;
+        t = trial;
+        improved = true;
+        lambda = std::max(lambda / 10, 1e-9);
+        // Converged: the centre moves by less than 1e-5 px (far below its
+        // noise) or the cost no longer decreases.
+        if (decrease <= 1e-10 * cost || (std::fabs(step(0)) < 1e-5 && std::fabs(step(1)) < 1e-5)) {
+          converged = true;
+        }
+        cost = trial_cost;
+      } else {
+        lambda *= 10;
+      }
+    }
+    if (!improved) converged = true;  // no descent direction left: at the minimum (or stuck)
+  }
+  // The fitted centre must stay inside the window, the spot not wider than it.
+  if (!Admissible(t) || t(0) < w.x0 - 0.5 || t(0) > w.x1 + 0.5 || t(1) < w.y0 - 0.5 ||
+      t(1) > w.y1 + 0.5) {
+    return out;
+  }
+  Eigen::Matrix2d P;
+  P << t(4), t(5), t(5), t(6);
+  const Eigen::Matrix2d shape = P.inverse();
+  const double half = 0.5 * std::max(w.x1 - w.x0 + 1, w.y1 - w.y0 + 1);
+  if (!(shape(0, 0) < half * half && shape(1, 1) < half * half)) return out;
+  Normal(px, t, &H, &g);
+  const Eigen::LDLT<Mat7> ldlt(H);
+  if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return out;
+  const Mat7 inv = ldlt.solve(Mat7::Identity());
+  const double dof = static_cast<double>(px.size()) - 7.0;
+  out.reduced_chi2 = cost / dof;
+  out.theta = t;
+  out.u = t(0);
+  out.v = t(1);
+  out.amplitude = t(2);
+  out.background = t(3);
+  out.shape = shape;
+  out.covariance = out.reduced_chi2 * inv.topLeftCorner<2, 2>();
+  out.ok = out.covariance.allFinite() && out.covariance(0, 0) > 0 && out.covariance(1, 1) > 0;
+  return out;
+}
+
+// Jacobian row of the model at pixel p (see Normal) and the signal A e.
+void ModelRow(const Pixel& p, const Vec7& t, Vec7* j, double* signal, double* residual) {
+  const double du = p.x - t(0), dv = p.y - t(1);
+  const double q = t(4) * du * du + 2 * t(5) * du * dv + t(6) * dv * dv;
+  const double e = std::exp(-0.5 * q);
+  const double Ae = t(2) * e;
+  (*j)(0) = Ae * (t(4) * du + t(5) * dv);
+  (*j)(1) = Ae * (t(5) * du + t(6) * dv);
+  (*j)(2) = e;
+  (*j)(3) = 1.0;
+  (*j)(4) = -0.5 * Ae * du * du;
+  (*j)(5) = -Ae * du * dv;
+  (*j)(6) = -0.5 * Ae * dv * dv;
+  *signal = Ae;
+  *residual = p.value - (t(3) + Ae);
+}
+
+// Covariance of the centre of a fit weighted for speckle (weights w_i =
+// 1 / (base_i + gamma^2 s_i^2)) when the speckle is correlated between
+// pixels: the sandwich H^-1 M H^-1 with
+//   M = sum_ij w_i w_j J_i J_j^T (delta_ij base_i + gamma^2 s_i s_j rho(d_ij)),
+//   rho(d) = exp(-d^2 / (2 g^2)),
+// g estimated from the lag-1 autocorrelation of the normalised residuals of
+// the speckle-dominated pixels. Sets fit->covariance and fit->speckle_grain.
+void SpeckleCovariance(const std::vector<Pixel>& px, const std::vector<double>& base_var,
+                       double gamma2, double known_grain, const Window& w, FitResult* fit) {
+  const Vec7& t = fit->theta;
+  const int ww = w.x1 - w.x0 + 1, wh = w.y1 - w.y0 + 1;
+  std::vector<int> index(static_cast<size_t>(ww * wh), -1);
+  std::vector<Vec7> J(px.size());
+  std::vector<double> sig(px.size()), z(px.size()), frac(px.size());
+  Mat7 H = Mat7::Zero();
+  for (size_t i = 0; i < px.size(); ++i) {
+    double r = 0;
+    ModelRow(px[i], t, &J[i], &sig[i], &r);
+    z[i] = r * std::sqrt(px[i].weight);
+    frac[i] = gamma2 * sig[i] * sig[i] * px[i].weight;  // speckle share of the variance
+    H.noalias() += px[i].weight * J[i] * J[i].transpose();
+    const int xi = static_cast<int>(px[i].x) - w.x0, yi = static_cast<int>(px[i].y) - w.y0;
+    index[static_cast<size_t>(yi * ww + xi)] = static_cast<int>(i);
+  }
+  double num = 0, den = 0, fsum = 0;
+  int pairs = 0;
+  for (size_t i = 0; i < px.size(); ++i) {
+    if (frac[i] < 0.8) continue;
+    const int xi = static_cast<int>(px[i].x) - w.x0, yi = static_cast<int>(px[i].y) - w.y0;
+    const int neighbours[2][2] = {{xi + 1, yi}, {xi, yi + 1}};
+    for (const auto& n : neighbours) {
+      if (n[0] >= ww || n[1] >= wh) continue;
+      const int j = index[static_cast<size_t>(n[1] * ww + n[0])];
+      if (j < 0 || frac[static_cast<size_t>(j)] < 0.8) continue;
+      num += z[i] * z[static_cast<size_t>(j)];
+      den += 0.5 * (z[i] * z[i] + z[static_cast<size_t>(j)] * z[static_cast<size_t>(j)]);
+      fsum += 0.5 * (frac[i] + frac[static_cast<size_t>(j)]);
+      ++pairs;
+    }
+  }
+  double g2 = known_grain * known_grain;
+  if (known_grain <= 0) {
+    if (pairs < 8 || !(den > 0)) return;
+    const double rho1 = std::clamp(num / den / (fsum / pairs), 0.0, 0.95);
+    if (rho1 < 0.05) return;  // uncorrelated: the weighted fit's covariance holds
+    g2 = -1.0 / (2.0 * std::log(rho1));
+  }
+  const int reach = static_cast<int>(std::ceil(3.0 * std::sqrt(g2)));
+  const int side = 2 * reach + 1;
+  std::vector<double> rho_table(static_cast<size_t>(side * side));
+  for (int dy = -reach; dy <= reach; ++dy) {
+    for (int dx = -reach; dx <= reach; ++dx) {
+      rho_table[static_cast<size_t>((dy + reach) * side + dx + reach)] =
+          std::exp(-0.5 * (dx * dx + dy * dy) / g2);
+    }
+  }
+  Mat7 M = Mat7::Zero();
+  for (size_t i = 0; i < px.size(); ++i) {
+    const int xi = static_cast<int>(px[i].x) - w.x0, yi = static_cast<int>(px[i].y) - w.y0;
+    Vec7 acc = px[i].weight * base_var[i] * J[i];  // the uncorrelated part (j = i)
+    for (int dy = -reach; dy <= reach; ++dy) {
+      for (int dx = -reach; dx <= reach; ++dx) {
+        const int xj = xi + dx, yj = yi + dy;
+        if (xj < 0 || yj < 0 || xj >= ww || yj >= wh) continue;
+        const int j = index[static_cast<size_t>(yj * ww + xj)];
+        if (j < 0) continue;
+        const double rho = rho_table[static_cast<size_t>((dy + reach) * side + dx + reach)];
+        acc += px[static_cast<size_t>(j)].weight * gamma2 * sig[i] * sig[static_cast<size_t>(j)] *
+               rho * J[static_cast<size_t>(j)];
+      }
+    }
+    M.noalias() += px[i].weight * J[i] * acc.transpose();
+  }
+  const Eigen::LDLT<Mat7> ldlt(H);
+  if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return;
+  const Mat7 Hinv = ldlt.solve(Mat7::Identity());
+  const Mat7 C = Hinv * (0.5 * (M + M.transpose())) * Hinv;
+  const Eigen::Matrix2d cov = C.topLeftCorner<2, 2>();
+  if (cov.allFinite() && cov(0, 0) > 0 && cov(1, 1) > 0) {
+    fit->covariance = cov;
+    fit->speckle_grain = std::sqrt(g2);
+  }
+}
+
+}  // namespace
+
+std::string OpenCvTypeName(int type) {
+  static const char* const depths[] = {"CV_8U", "CV_8S", "CV_16U", "CV_16S",
+                                       "CV_32S", "CV_32F", "CV_64F", "CV_16F"};
+  const int depth = CV_MAT_DEPTH(type);
+  const int channels = CV_MAT_CN(type);
+  return std::string(depths[depth]) + "C" + std::to_string(channels);
+}
+
+Status SpotDetectionOptions::Validate() const {
+  auto bad = [](const char* field, double value, const char* rule) {
+    return Status::InvalidArgument(std::string("SpotDetectionOptions.") + field + " = " +
+                                   FormatNumber(value) + ": " + rule);
+  };
+  if (background_block_px < 8) return bad("background_block_px", background_block_px, "must be >= 8");
+  if (!(smoothing_sigma_px >= 0 && smoothing_sigma_px <= 10)) {
+    return bad("smoothing_sigma_px", smoothing_sigma_px, "must be in [0, 10]");
+  }
+  if (!(threshold_sigma > 0) || !std::isfinite(threshold_sigma)) {
+    return bad("threshold_sigma", threshold_sigma, "must be finite and > 0");
+  }
+  if (!(min_noise_dn > 0) || !std::isfinite(min_noise_dn)) {
+    return bad("min_noise_dn", min_noise_dn, "must be finite and > 0");
+  }
+  if (min_area_px < 1) return bad("min_area_px", min_area_px, "must be >= 1");
+  if (max_area_px < min_area_px) return bad("max_area_px", max_area_px, "must be >= min_area_px");
+  if (!(max_elongation >= 1) || !std::isfinite(max_elongation)) {
+    return bad("max_elongation", max_elongation, "must be finite and >= 1");
+  }
+  if (!(min_peak_separation_px >= 1) || !std::isfinite(min_peak_separation_px)) {
+    return bad("min_peak_separation_px", min_peak_separation_px, "must be finite and >= 1");
+  }
+  if (!(merged_dip_fraction > 0 && merged_dip_fraction <= 1)) {
+    return bad("merged_dip_fraction", merged_dip_fraction, "must be in (0, 1]");
+  }
+  if (!(saturation_dn >= 0) || !std::isfinite(saturation_dn)) {
+    return bad("saturation_dn", saturation_dn, "must be finite and >= 0 (0: the type's maximum)");
+  }
+  if (!(gain_e_per_dn >= 0) || !std::isfinite(gain_e_per_dn)) {
+    return bad("gain_e_per_dn", gain_e_per_dn, "must be finite and >= 0 (0: unknown)");
+  }
+  if (min_window_half_px < 2) return bad("min_window_half_px", min_window_half_px, "must be >= 2");
+  if (max_window_half_px < min_window_half_px) {
+    return bad("max_window_half_px", max_window_half_px, "must be >= min_window_half_px");
+  }
+  if (max_iterations < 1) return bad("max_iterations", max_iterations, "must be >= 1");
+  if (!(speckle_contrast >= 0 && speckle_contrast <= 1)) {
+    return bad("speckle_contrast", speckle_contrast, "must be in [0, 1] (0: estimate)");
+  }
+  if (!(speckle_grain_px >= 0 && speckle_grain_px <= 20)) {
+    return bad("speckle_grain_px", speckle_grain_px, "must be in [0, 20] (0: estimate)");
+  }
+  return Status::Ok();
+}
+
+std::string SpotDetectionResult::ToText() const {
+  std::ostringstream s;
+  s << spots.size() << " spots from " << components << " components (rejected: " << rejected_small
+    << " small, " << rejected_large << " large, " << rejected_border << " at the border, "
+    << rejected_elongated << " elongated, " << rejected_merged << " merged); background "
+    << FormatNumber(background_dn, 6) << " DN, noise " << FormatNumber(noise_dn, 4)
+    << " DN, threshold " << FormatNumber(threshold_dn, 4) << " DN above background";
+  return s.str();
+}
+
+Result<SpotDetectionResult> DetectSpots(const cv::Mat& image, const SpotDetectionOptions& options) {
+  if (image.empty()) return Status::InvalidArgument("DetectSpots: image is empty");
+  if (image.type() != CV_8UC1 && image.type() != CV_16UC1) {
+    return Status::InvalidArgument("DetectSpots: image type " + OpenCvTypeName(image.type()) +
+                                   " (" + FormatNumber(image.cols) + " x " +
+                                   FormatNumber(image.rows) +
+                                   "): must be single-channel CV_8UC1 or CV_16UC1");
+  }
+  OPL_RETURN_IF_ERROR(options.Validate());
+  const int W = image.cols, H = image.rows;
+  const double saturation = options.saturation_dn > 0
+                                ? options.saturation_dn
+                                : (image.depth() == CV_8U ? 255.0 : 65535.0);
+  const cv::Mat& img = image;  // read in its own type (PixRow): no full-size copy
+
+  // 1. Background and noise per block.
+  const int B = options.background_block_px;
+  const int nbx = (W + B - 1) / B, nby = (H + B - 1) / B;
+  cv::Mat bg_blocks(nby, nbx, CV_32F), noise_blocks(nby, nbx, CV_32F);
+  // Sample about 16 x 16 pixels (and pairs) per block: enough for a robust
+  // median and MAD, and 1/16 of the work of all pixels at 64 px blocks.
+  const int stride = std::max(1, B / 16);
+  std::vector<float> sample, diffs;
+  for (int by = 0; by < nby; ++by) {
+    for (int bx = 0; bx < nbx; ++bx) {
+      const int x0 = bx * B, x1 = std::min(W, x0 + B);
+      const int y0 = by * B, y1 = std::min(H, y0 + B);
+      sample.clear();
+      diffs.clear();
+      for (int y = y0; y < y1; y += stride) {
+        const PixRow row(img, y);
+        for (int x = x0; x < x1; x += stride) {
+          sample.push_back(row[x]);
+          if (x + 1 < W) diffs.push_back(std::fabs(row[x + 1] - row[x]));
+        }
+      }
+      bg_blocks.at<float>(by, bx) = static_cast<float>(Median(&sample));
+      const double sigma = 1.4826 * Median(&diffs) / std::sqrt(2.0);
+      noise_blocks.at<float>(by, bx) = static_cast<float>(std::max(sigma, options.min_noise_dn));
+    }
+  }
+  if (nbx >= 3 && nby >= 3) {
+    cv::Mat bg_filtered, noise_filtered;  // distinct buffers: the inputs stay intact
+    cv::medianBlur(bg_blocks, bg_filtered, 3);
+    // The noise varies slowly (with the background level): a wider median.
+    cv::medianBlur(noise_blocks, noise_filtered, nbx >= 5 && nby >= 5 ? 5 : 3);
+    bg_blocks = bg_filtered;
+    noise_blocks = noise_filtered;
+  }
+  SpotDetectionResult result;
+  {
+    std::vector<float> v(bg_blocks.begin<float>(), bg_blocks.end<float>());
+    result.background_dn = Median(&v);
+    std::vector<float> n(noise_blocks.begin<float>(), noise_blocks.end<float>());
+    result.noise_dn = Median(&n);
+  }
+
+  // 2. Smoothing and threshold.
+  cv::Mat smooth;
+  double noise_gain = 1.0;
+  if (options.smoothing_sigma_px > 0) {
+    const int radius = std::max(1, static_cast<int>(std::ceil(3.0 * options.smoothing_sigma_px)));
+    const cv::Mat k = cv::getGaussianKernel(2 * radius + 1, options.smoothing_sigma_px, CV_32F);
+    cv::sepFilter2D(img, smooth, CV_32F, k, k, cv::Point(-1, -1), 0.0, cv::BORDER_REFLECT);
+    double k2 = 0;
+    for (int i = 0; i < k.rows; ++i) k2 += static_cast<double>(k.at<float>(i)) * k.at<float>(i);
+    noise_gain = k2;  // sqrt(sum of the 2D kernel's squares) = sum of the 1D kernel's squares
+  } else {
+    img.convertTo(smooth, CV_32F);
+  }
+  cv::Mat thr_blocks = bg_blocks + noise_blocks * (options.threshold_sigma * noise_gain);
+  result.threshold_dn = options.threshold_sigma * noise_gain * result.noise_dn;
+  const BlockGrid bg(bg_blocks, B, W, H);
+  const BlockGrid noise(noise_blocks, B, W, H);
+  BlockGrid thr(thr_blocks, B, W, H);
+  cv::Mat mask(H, W, CV_8U);
+  // Blocks holding at least one "on" pixel: the components are labelled only
+  // inside groups of such blocks (a sparse mask of 18 MP costs a full-image
+  // cv::connectedComponentsWithStats 100-200 ms; its active blocks, little).
+  cv::Mat active = cv::Mat::zeros(nby, nbx, CV_8U);
+  {
+    std::vector<float> thr_row;
+    for (int y = 0; y < H; ++y) {
+      thr.Row(y, &thr_row);
+      const float* s = smooth.ptr<float>(y);
+      uint8_t* m = mask.ptr<uint8_t>(y);
+      uint8_t* a = active.ptr<uint8_t>(y / B);
+      for (int x = 0; x < W; ++x) {
+        const bool on = s[x] > thr_row[static_cast<size_t>(x)];
+        m[x] = on ? 255 : 0;
+        if (on) a[x / B] = 1;
+      }
+    }
+  }
+
+  // 3. Components, per group of 8-connected active blocks (a component's
+  // blocks are all active and connected, so it lies in one group's bounding
+  // box; a box may overlap another group's, so a component is taken only by
+  // the group of the block of its first pixel).
+  cv::Mat groups, group_stats, group_centroids;
+  const int num_groups =
+      cv::connectedComponentsWithStats(active, groups, group_stats, group_centroids, 8, CV_32S);
+  for (int group = 1; group < num_groups; ++group) {
+    const cv::Rect rect =
+        cv::Rect(group_stats.at<int>(group, cv::CC_STAT_LEFT) * B,
+                 group_stats.at<int>(group, cv::CC_STAT_TOP) * B,
+                 group_stats.at<int>(group, cv::CC_STAT_WIDTH) * B,
+                 group_stats.at<int>(group, cv::CC_STAT_HEIGHT) * B) &
+        cv::Rect(0, 0, W, H);
+    cv::Mat labels, stats, centroids;
+    const int n = cv::connectedComponentsWithStats(mask(rect), labels, stats, centroids, 8, CV_32S);
+    auto label_at = [&](int x, int y) { return labels.at<int>(y - rect.y, x - rect.x); };
+    for (int label = 1; label < n; ++label) {
+      const int left = stats.at<int>(label, cv::CC_STAT_LEFT) + rect.x;
+      const int top = stats.at<int>(label, cv::CC_STAT_TOP) + rect.y;
+      const int bw = stats.at<int>(label, cv::CC_STAT_WIDTH);
+      const int bh = stats.at<int>(label, cv::CC_STAT_HEIGHT);
+      const int area = stats.at<int>(label, cv::CC_STAT_AREA);
+      {
+        int first_x = left;
+        while (label_at(first_x, top) != label) ++first_x;
+        if (groups.at<int>(top / B, first_x / B) != group) continue;
+      }
+      ++result.components;
+      if (area < options.min_area_px) {
+        ++result.rejected_small;
+        continue;
+      }
+      if (area > options.max_area_px) {
+        ++result.rejected_large;
+        continue;
+      }
+      if (options.reject_border && (left == 0 || top == 0 || left + bw == W || top + bh == H)) {
+        ++result.rejected_border;
+        continue;
+      }
+      // Weighted moments of the component's pixels.
+      const LocalBackground lbg(bg, left + 0.5 * (bw - 1), top + 0.5 * (bh - 1));
+      double s = 0, su = 0, sv = 0, suu = 0, suv = 0, svv = 0;
+      for (int y = top; y < top + bh; ++y) {
+        const PixRow row(img, y);
+        for (int x = left; x < left + bw; ++x) {
+          if (label_at(x, y) != label) continue;
+          const double val = std::max(0.0, row[x] - lbg.At(x, y));
+          s += val;
+          su += val * x;
+          sv += val * y;
+          suu += val * x * x;
+          suv += val * x * y;
+          svv += val * y * y;
+        }
+      }
+      if (!(s > 0)) {
+        ++result.rejected_small;
+        continue;
+      }
+      const double mu = su / s, mv = sv / s;
+      Eigen::Matrix2d m2;
+      m2 << suu / s - mu * mu, suv / s - mu * mv, suv / s - mu * mv, svv / s - mv * mv;
+      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(m2);
+      const double lmin = std::max(eig.eigenvalues()(0), 1.0 / 12.0);
+      const double lmax = std::max(eig.eigenvalues()(1), 1.0 / 12.0);
+      if (std::sqrt(lmax / lmin) > options.max_elongation) {
+        ++result.rejected_elongated;
+        continue;
+      }
+      // Merged: distinct strong peaks with a dip between them, on the
+      // component smoothed at half its own minor sigma (at least
+      // smoothing_sigma_px), so that speckle lumps of a large spot merge
+      // while two spots keep their dip.
+      const double sm = std::max(options.smoothing_sigma_px, 0.5 * std::sqrt(lmin));
+      const int margin = static_cast<int>(std::ceil(3.0 * sm)) + 1;
+      const cv::Rect roi = cv::Rect(left - margin, top - margin, bw + 2 * margin, bh + 2 * margin) &
+                           cv::Rect(0, 0, W, H);
+      cv::Mat local;
+      cv::Mat roi_f;
+      img(roi).convertTo(roi_f, CV_32F);
+      cv::GaussianBlur(roi_f, local, cv::Size(0, 0), sm, sm, cv::BORDER_REFLECT);
+      auto local_at = [&](int x, int y) {
+        return static_cast<double>(local.at<float>(y - roi.y, x - roi.x)) - lbg.At(x, y);
+      };
+      struct Peak {
+        int x, y;
+        double value;
+      };
+      std::vector<Peak> peaks;
+      double max_val = -1e300;
+      for (int y = top; y < top + bh; ++y) {
+        for (int x = left; x < left + bw; ++x) {
+          if (label_at(x, y) != label) continue;
+          const float centre = local.at<float>(y - roi.y, x - roi.x);
+          bool is_max = true;
+          for (int dy = -1; dy <= 1 && is_max; ++dy) {
+            for (int dx = -1; dx <= 1; ++dx) {
+              const int xx = x + dx - roi.x, yy = y + dy - roi.y;
+              if ((dx == 0 && dy == 0) || xx < 0 || yy < 0 || xx >= roi.width || yy >= roi.height) {
+                continue;
+              }
+              if (local.at<float>(yy, xx) > centre) {
+                is_max = false;
+                break;
+              }
+            }
+          }
+          const double value = local_at(x, y);
+          max_val = std::max(max_val, value);
+          if (is_max) peaks.push_back({x, y, value});
+        }
+      }
+      std::sort(peaks.begin(), peaks.end(), [](const Peak& p, const Peak& q) { return p.value > q.value; });
+      std::vector<Peak> kept;
+      const double sep2 = options.min_peak_separation_px * options.min_peak_separation_px;
+      for (const Peak& p : peaks) {
+        if (p.value < 0.5 * max_val) break;
+        bool far = true;
+        for (const Peak& k : kept) {
+          const double dx = p.x - k.x, dy = p.y - k.y;
+          if (dx * dx + dy * dy < sep2) far = false;
+        }
+        if (far) kept.push_back(p);
+        if (kept.size() >= 6) break;
+      }
+      bool merged = false;
+      for (size_t i = 0; i < kept.size() && !merged; ++i) {
+        for (size_t j = i + 1; j < kept.size() && !merged; ++j) {
+          const double dx = kept[j].x - kept[i].x, dy = kept[j].y - kept[i].y;
+          const int steps = static_cast<int>(std::ceil(std::hypot(dx, dy)));
+          double dip = 1e300;
+          for (int k = 1; k < steps; ++k) {
+            const double t = static_cast<double>(k) / steps;
+            const int x = static_cast<int>(std::lround(kept[i].x + t * dx));
+            const int y = static_cast<int>(std::lround(kept[i].y + t * dy));
+            dip = std::min(dip, local_at(x, y));
+          }
+          if (dip < options.merged_dip_fraction * std::min(kept[i].value, kept[j].value)) merged = true;
+        }
+      }
+      if (merged) {
+        ++result.rejected_merged;
+        continue;
+      }
+
+      // 4. Centroid in a window, re-centred twice.
+      const int half = std::clamp(static_cast<int>(std::ceil(0.625 * std::max(bw, bh) + 2.0)),
+                                  options.min_window_half_px, options.max_window_half_px);
+      const double sigma_bg = noise.At(mu, mv);
+      CentroidResult c;
+      double cu = mu, cv_ = mv;
+      Window w{};
+      for (int pass = 0; pass < 3; ++pass) {
+        w = MakeWindow(cu, cv_, half, W, H);
+        const CentroidResult next = Centroid(img, lbg, w, sigma_bg, options.gain_e_per_dn);
+        if (!next.ok) break;
+        c = next;
+        cu = c.u;
+        cv_ = c.v;
+      }
+      if (!c.ok) {
+        ++result.rejected_small;
+        continue;
+      }
+      DetectedSpot spot;
+      spot.area_px = area;
+      spot.centroid_u_px = c.u;
+      spot.centroid_v_px = c.v;
+      spot.flux_dn = c.flux;
+      spot.background_dn = lbg.At(c.u, c.v);
+      if (w.clipped) spot.flags |= kSpotNearBorder;
+      int saturated = 0;
+      std::vector<Pixel> pixels;
+      pixels.reserve(static_cast<size_t>((w.x1 - w.x0 + 1) * (w.y1 - w.y0 + 1)));
+      for (int y = w.y0; y <= w.y1; ++y) {
+        const PixRow row(img, y);
+        for (int x = w.x0; x <= w.x1; ++x) {
+          if (row[x] >= saturation) {
+            ++saturated;
+            continue;
+          }
+          double var = sigma_bg * sigma_bg;
+          if (options.gain_e_per_dn > 0) {
+            var += std::max(0.0, row[x] - spot.background_dn) / options.gain_e_per_dn;
+          }
+          pixels.push_back({static_cast<double>(x), static_cast<double>(y), row[x], 1.0 / var});
+        }
+      }
+      spot.saturated_px = saturated;
+      if (saturated > 0) spot.flags |= kSpotSaturated;
+
+      FitResult fit;
+      if (options.refine_with_fit) {
+        // Start: centroid, window moments (less the pixel box), amplitude from
+        // the flux (robust to clipping).
+        Eigen::Matrix2d shape = c.shape - Eigen::Matrix2d::Identity() / 12.0;
+        const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> se(shape);
+        Eigen::Vector2d ev = se.eigenvalues().cwiseMax(0.25);
+        shape = se.eigenvectors() * ev.asDiagonal() * se.eigenvectors().transpose();
+        const Eigen::Matrix2d P = shape.inverse();
+        const double amp = std::max(c.peak, c.flux / (2 * kPi * std::sqrt(shape.determinant())));
+        Vec7 start;
+        start << c.u, c.v, amp, spot.background_dn, P(0, 0), P(0, 1), P(1, 1);
+        fit = FitGaussian(pixels, start, w, options.max_iterations);
+        // Multiplicative (speckle) noise: residual variance sigma_i^2 + gamma^2 s_i^2,
+        // s_i the fitted signal; gamma^2 by moments. When it matters at the
+        // peak, refit with those weights (they flatten the core's weight, so
+        // the lumpy core no longer dominates the centre).
+        if (fit.ok) {
+          double num = 0, den = 0;
+          std::vector<double> signal2(pixels.size());
+          for (size_t i = 0; i < pixels.size(); ++i) {
+            const Pixel& p = pixels[i];
+            const double du = p.x - fit.u, dv = p.y - fit.v;
+            const Eigen::Vector2d d(du, dv);
+            const double sig = fit.amplitude * std::exp(-0.5 * d.dot(fit.shape.ldlt().solve(d)));
+            const double r = p.value - fit.background - sig;
+            signal2[i] = sig * sig;
+            num += signal2[i] * (r * r - 1.0 / p.weight);
+            den += signal2[i] * signal2[i];
+          }
+          const double gamma2 = options.speckle_contrast > 0
+                                    ? options.speckle_contrast * options.speckle_contrast
+                                    : (den > 0 ? std::max(0.0, num / den) : 0.0);
+          if (gamma2 * fit.amplitude * fit.amplitude > 0.25 * sigma_bg * sigma_bg) {
+            std::vector<Pixel> reweighted = pixels;
+            for (size_t i = 0; i < pixels.size(); ++i) {
+              reweighted[i].weight = 1.0 / (1.0 / pixels[i].weight + gamma2 * signal2[i]);
+            }
+            const Eigen::Matrix2d P2 = fit.shape.inverse();
+            Vec7 start2;
+            start2 << fit.u, fit.v, fit.amplitude, fit.background, P2(0, 0), P2(0, 1), P2(1, 1);
+            const FitResult refit = FitGaussian(reweighted, start2, w, options.max_iterations);
+            if (refit.ok) {
+              fit = refit;
+              fit.speckle_gamma = std::sqrt(gamma2);
+              std::vector<double> base_var(pixels.size());
+              for (size_t i = 0; i < pixels.size(); ++i) base_var[i] = 1.0 / pixels[i].weight;
+              SpeckleCovariance(reweighted, base_var, gamma2, options.speckle_grain_px, w, &fit);
+            }
+          }
+        }
+      }
+      if (fit.ok) {
+        spot.u_px = fit.u;
+        spot.v_px = fit.v;
+        spot.covariance_px2 = fit.covariance;
+        spot.peak_dn = fit.amplitude;
+        spot.background_dn = fit.background;
+        spot.shape_px2 = fit.shape;
+        spot.reduced_chi2 = fit.reduced_chi2;
+        spot.speckle_contrast = fit.speckle_gamma;
+        if (fit.reduced_chi2 > 4.0) spot.flags |= kSpotPoorFit;
+      } else {
+        if (options.refine_with_fit) spot.flags |= kSpotFitFailed;
+        spot.u_px = c.u;
+        spot.v_px = c.v;
+        spot.covariance_px2 = c.covariance;
+        spot.peak_dn = c.peak;
+        spot.shape_px2 = c.shape;
+      }
+      spot.snr = spot.peak_dn / sigma_bg;
+      result.spots.push_back(spot);
+    }
+  }
+  std::sort(result.spots.begin(), result.spots.end(), [](const DetectedSpot& a, const DetectedSpot& b) {
+    return a.v_px != b.v_px ? a.v_px < b.v_px : a.u_px < b.u_px;
+  });
+  return result;
+}
+
+}  // namespace opl

@@ -55,6 +55,9 @@ struct PatternIndex {
   // Minv's row sums of |.| times FastAtan's error bound are far below the
   // 1e-6 rounding margin (always for a usable lattice; checked).
   bool fast_margin_ok = false;
+  double model_error = 0.0;     // worst |lattice position - node| at the beams, steps
+  double min_x = 1.0;           // smallest X component of a beam direction
+  double minv_norm_inf = 0.0;   // max row sum of |Minv|
 
   bool Has(int col, int row) const {
     return col >= 0 && row >= 0 && col < n && row < n && exists[row * n + col];
@@ -109,6 +112,22 @@ struct PatternIndex {
     return 4.0 * b * p;
   }
 
+  // The continuous lattice position of q (q.x() > 0) to within 1e-7 steps:
+  // with FastAtan for the tangent model where that is accurate, else exact;
+  // false when out of range (as Window).
+  bool Position(const Eigen::Vector3d& q, Eigen::Vector2d* l) const {
+    if (!cosines && fast_margin_ok) {
+      const double inv_x = 1.0 / q.x();
+      const double ty = q.y() * inv_x, tz = q.z() * inv_x;
+      if (std::abs(ty) < 1e3 && std::abs(tz) < 1e3) {
+        *l = Minv * (Eigen::Vector2d(FastAtan(ty), FastAtan(tz)) - c0);
+        return std::abs(l->x()) < 1e5 && std::abs(l->y()) < 1e5;
+      }
+    }
+    *l = Lattice(q);
+    return std::abs(l->x()) < 1e5 && std::abs(l->y()) < 1e5;
+  }
+
   // The 3 x 3 window of Nearest: the node (col, row) nearest the lattice
   // position of q (q.x() > 0), rounded half away from zero exactly as with
   // the atan2 model; false when the position is out of range. For the
@@ -140,10 +159,39 @@ struct PatternIndex {
     return true;
   }
 
+  // How far (in lattice steps, per component) the lattice position of a
+  // direction can lie from a node whose beam is within `gate` (chord) of it:
+  // the model's worst residual at the beams, plus the largest change of the
+  // position along the chord. The model coordinates change by at most
+  // chord / (min_x - gate) (tangent angles: |grad atan2(v_y, v_x)| =
+  // 1 / |(v_x, v_y)| <= 1 / v_x, and v_x >= min_x - gate on the chord) or
+  // by the chord (direction cosines), the position by |Minv|_inf times
+  // that; 1e-6 covers the fast arctangent and rounding. Infinity when the
+  // bound does not hold (gate >= min_x).
+  double PositionReach(double gate) const {
+    const double per_chord = cosines ? 1.0 : (min_x > gate ? 1.0 / (min_x - gate) : -1.0);
+    if (per_chord < 0.0) return std::numeric_limits<double>::infinity();
+    return model_error + minv_norm_inf * per_chord * gate + 1e-6;
+  }
+
   // Nearest(q, &angle) >= 0 && angle < gate, without finding the nearest:
   // true as soon as one node of the same 3 x 3 window is within the gate
   // (sqrt is monotonic, so min sqrt(d2) < gate iff some sqrt(d2) < gate).
-  bool AnyWithin(const Eigen::Vector3d& q, double gate) const {
+  // `reach` = PositionReach(gate): when below 1/2, only the rounded node
+  // can be within the gate, and only when the position is within `reach` of
+  // it in both components (the same answer, fewer nodes looked at).
+  bool AnyWithin(const Eigen::Vector3d& q, double gate, double reach) const {
+    if (reach < 0.5) {
+      Eigen::Vector2d l;
+      if (!Position(q, &l)) return false;
+      const int c = RoundHalfAway(l.x()), r = RoundHalfAway(l.y());
+      if (std::abs(l.x() - c) >= reach || std::abs(l.y() - r) >= reach || !Has(c, r)) return false;
+      const double d2 = (q.normalized() - Dir(c, r)).squaredNorm();
+      const double lo = gate * gate * (1.0 - 1e-12), hi = gate * gate * (1.0 + 1e-12);
+      if (d2 < lo) return true;
+      if (d2 > hi) return false;
+      return std::sqrt(d2) < gate;
+    }
     int c0i, r0i;
     if (!Window(q, &c0i, &r0i)) return false;
     const Eigen::Vector3d u = q.normalized();
@@ -164,6 +212,28 @@ struct PatternIndex {
       }
     }
     return false;
+  }
+
+  // Nearest(q, &angle) when that node is within `gate`, else -1 (angle
+  // unset). `reach` = PositionReach(gate): when below 1/2 only the rounded
+  // node can be within the gate (AnyWithin), and it is then the nearest of
+  // the window (every other node is at least `gate` away).
+  int NearestWithin(const Eigen::Vector3d& q, double gate, double reach, double* angle) const {
+    if (reach < 0.5) {
+      Eigen::Vector2d l;
+      if (!Position(q, &l)) return -1;
+      const int c = RoundHalfAway(l.x()), r = RoundHalfAway(l.y());
+      if (std::abs(l.x() - c) >= reach || std::abs(l.y() - r) >= reach || !Has(c, r)) return -1;
+      const double a = std::sqrt((q.normalized() - Dir(c, r)).squaredNorm());
+      if (!(a < gate)) return -1;
+      *angle = a;
+      return r * n + c;
+    }
+    double a = 0.0;
+    const int node = Nearest(q, &a);
+    if (node < 0 || !(a < gate)) return -1;
+    *angle = a;
+    return node;
   }
 
   // Nearest beam to the direction of q (q.x() > 0) among the 3 x 3 nodes
@@ -229,6 +299,7 @@ PatternIndex BuildIndex(const BeamPattern& pattern) {
     }
     if (worst < best_worst) {
       best_worst = worst;
+      index.model_error = worst;
       index.cosines = cos_model;
       index.c0 = c0;
       index.Minv = Minv;
@@ -245,6 +316,8 @@ PatternIndex BuildIndex(const BeamPattern& pattern) {
     }
   }
   index.fast_margin_ok = index.Minv.cwiseAbs().rowwise().sum().maxCoeff() * 3e-10 < 1e-7;
+  index.minv_norm_inf = index.Minv.cwiseAbs().rowwise().sum().maxCoeff();
+  for (const Beam& b : pattern.beams()) index.min_x = std::min(index.min_x, index.dir[b.id - 1].x());
   // Spacing: median angle between lattice neighbours.
   std::vector<double> angles;
   for (int r = 0; r < n; ++r) {
@@ -312,6 +385,7 @@ std::vector<Seed> FindSeeds(const Pool& pool, int k) {
     double norm;
   };
   std::vector<Axis> axes;
+
   // The k nearest neighbours of every point, by a sweep along the axis of
   // the largest extent: the points sorted along it, each point's search
   // runs outwards in that order and stops on a side once the coordinate gap
@@ -329,30 +403,31 @@ std::vector<Seed> FindSeeds(const Pool& pool, int k) {
     return xa < xb || (xa == xb && a < b);
   });
   for (int r = 0; r < n; ++r) rank[order[r]] = r;
-  std::vector<std::pair<double, int>> heap;
-  heap.reserve(k + 1);
+  // The k smallest (squared distance, index) pairs so far, ascending (an
+  // insertion-sorted array: k is small).
+  std::vector<std::pair<double, int>> knn(k);
   for (int i = 0; i < n; ++i) {
-    // The k smallest (squared distance, index) pairs, sorted: the keys are
-    // unique, so this is exactly the k first of all pairs sorted.
-    heap.clear();
-    const double xi = pool.p[i][sweep_axis];
+    // The keys are unique, so the result is exactly the k first of all pairs
+    // sorted.
+    int size = 0;
+    const Eigen::Vector3d pi0 = pool.p[i];
+    const double xi = pi0[sweep_axis];
     auto visit = [&](int j) {
-      const std::pair<double, int> key((pool.p[j] - pool.p[i]).squaredNorm(), j);
-      if (static_cast<int>(heap.size()) < k) {
-        heap.push_back(key);
-        std::push_heap(heap.begin(), heap.end());
-      } else if (key < heap.front()) {
-        std::pop_heap(heap.begin(), heap.end());
-        heap.back() = key;
-        std::push_heap(heap.begin(), heap.end());
+      const std::pair<double, int> key((pool.p[j] - pi0).squaredNorm(), j);
+      if (size == k && !(key < knn[k - 1])) return;
+      int pos = size < k ? size++ : k - 1;
+      while (pos > 0 && key < knn[pos - 1]) {
+        knn[pos] = knn[pos - 1];
+        --pos;
       }
+      knn[pos] = key;
     };
     // A side is done when its next point's gap squared exceeds the k-th
     // smallest so far (every later point on it is at least as far).
     auto done = [&](int j) {
-      if (static_cast<int>(heap.size()) < k) return false;
+      if (size < k) return false;
       const double gap = pool.p[j][sweep_axis] - xi;
-      return gap * gap > heap.front().first;
+      return gap * gap > knn[k - 1].first;
     };
     int down = rank[i] - 1, up = rank[i] + 1;
     while (down >= 0 || up < n) {
@@ -371,8 +446,7 @@ std::vector<Seed> FindSeeds(const Pool& pool, int k) {
         }
       }
     }
-    std::sort_heap(heap.begin(), heap.end());
-    std::copy(heap.begin(), heap.end(), dist.begin());
+    std::copy(knn.begin(), knn.end(), dist.begin());
     for (int j = 0; j < k; ++j) nb[j] = dist[j].second;
     for (int j = 0; j < k; ++j) nbp[j] = pool.p[nb[j]];
     for (int j = 0; j < k; ++j) nbd[j] = std::sqrt(dist[j].first);
@@ -804,11 +878,12 @@ class Identifier {
   int Score(int s, const PoseRt& pose, double gate, const Eigen::Matrix3Xd& points) const {
     const PatternIndex& idx = index_[s];
     int count = 0;
+    const double reach = idx.PositionReach(gate);
     const Eigen::Matrix3Xd Q = (pose.R * points).colwise() + pose.t;
     for (Eigen::Index i = 0; i < Q.cols(); ++i) {
       const Eigen::Vector3d q = Q.col(i);
       if (!(q.x() > 0.0) || !idx.MayBeWithin(q, gate)) continue;
-      if (idx.AnyWithin(q, gate)) ++count;
+      if (idx.AnyWithin(q, gate, reach)) ++count;
     }
     return count;
   }
@@ -824,13 +899,14 @@ class Identifier {
     const int nn = idx.n * idx.n;
     std::vector<int> best(nn, -1), second(nn, -1);
     std::vector<double> best_a(nn, 0.0), second_a(nn, 0.0);
+    const double reach = idx.PositionReach(gate);
     for (int i = 0; i < pool_.size(); ++i) {
       if (!Eligible(i, s)) continue;
       const Eigen::Vector3d q = Rt * (pool_.p[i] - t);
       if (!(q.x() > 0.0) || !idx.MayBeWithin(q, gate)) continue;
-      double angle;
-      const int node = idx.Nearest(q, &angle);
-      if (node < 0 || !(angle < gate) || reserved_[s][node]) continue;
+      double angle = 0.0;
+      const int node = idx.NearestWithin(q, gate, reach, &angle);
+      if (node < 0 || reserved_[s][node]) continue;
       if (std::abs(node % idx.n - centre.x()) > radius || std::abs(node / idx.n - centre.y()) > radius) continue;
       if (best[node] < 0 || angle < best_a[node]) {
         second[node] = best[node];

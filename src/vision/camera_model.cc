@@ -70,6 +70,25 @@ bool Camera::InImage(const Eigen::Vector2d& pixel, double margin_px) const {
 
 Eigen::Vector3d Camera::CenterInScene() const { return cam_from_scene.Inverse().translation; }
 
+Result<Rigid3d> CamFromSceneLookingAt(const Eigen::Vector3d& center_in_scene,
+                                      const Eigen::Vector3d& target_in_scene, double roll_rad) {
+  const Eigen::Vector3d axis = target_in_scene - center_in_scene;
+  if (!axis.allFinite() || !std::isfinite(roll_rad) || !(axis.norm() > 0.0)) {
+    return Status::InvalidArgument("camera placement: the centre and the target must be finite and distinct");
+  }
+  const Eigen::Vector3d z = axis.normalized();
+  Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
+  if (std::abs(z.dot(up)) > 0.99) up = Eigen::Vector3d::UnitY();
+  const Eigen::Vector3d x = z.cross(up).normalized();
+  const Eigen::Vector3d y = z.cross(x);
+  Eigen::Matrix3d R;  // rows: the camera axes in the scene frame
+  R.row(0) = x;
+  R.row(1) = y;
+  R.row(2) = z;
+  R = Eigen::AngleAxisd(roll_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix() * R;
+  return Rigid3d(R, -(R * center_in_scene));
+}
+
 Result<Eigen::Vector2d> UndistortPixel(const CameraIntrinsics& intrinsics,
                                        const Eigen::Vector2d& pixel) {
   const auto packed = intrinsics.Packed();

@@ -24,17 +24,6 @@ namespace {
 
 using opl::BundleData;
 
-opl::Rigid3d LookAt(const Eigen::Vector3d& center, const Eigen::Vector3d& target) {
-  const Eigen::Vector3d z = (target - center).normalized();
-  const Eigen::Vector3d x = z.cross(Eigen::Vector3d::UnitZ()).normalized();
-  const Eigen::Vector3d y = z.cross(x);
-  Eigen::Matrix3d R;
-  R.row(0) = x;
-  R.row(1) = y;
-  R.row(2) = z;
-  return opl::Rigid3d(R, -(R * center));
-}
-
 struct BenchScene {
   BundleData truth;
   BundleData start;  // noisy pixels, perturbed poses and points
@@ -70,9 +59,8 @@ const BenchScene& Scene() {
       opl::BundleCamera c;
       c.name = k.name;
       c.intrinsics_index = i;
-      c.cam_from_scene = LookAt(
-          center + Eigen::Vector3d(h * std::cos(az), h * std::sin(az), heights[i] - center.z()),
-          center);
+      c.cam_from_scene = *opl::CamFromSceneLookingAt(
+          center + Eigen::Vector3d(h * std::cos(az), h * std::sin(az), heights[i] - center.z()), center);
       s.truth.cameras.push_back(c);
     }
     // 100 targets seen by >= 3 cameras, then 500 spots seen by >= 2.

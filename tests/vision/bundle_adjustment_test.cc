@@ -33,19 +33,6 @@ int MonteCarloTrials(int default_trials) {
   return n > 0 ? n : default_trials;
 }
 
-// Camera at `center` looking at `target`, rolled by `roll` rad about its axis.
-Rigid3d LookAt(const Eigen::Vector3d& center, const Eigen::Vector3d& target, double roll) {
-  const Eigen::Vector3d z = (target - center).normalized();
-  const Eigen::Vector3d x = z.cross(Eigen::Vector3d::UnitZ()).normalized();
-  const Eigen::Vector3d y = z.cross(x);
-  Eigen::Matrix3d R;
-  R.row(0) = x;
-  R.row(1) = y;
-  R.row(2) = z;
-  R = Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitZ()).toRotationMatrix() * R;
-  return Rigid3d(R, -(R * center));
-}
-
 struct Scene {
   BundleData truth;            // true poses and points, noise-free pixels
   std::vector<Eigen::Vector2d> clean_px;
@@ -91,7 +78,7 @@ Scene MakeScene(int num_targets, int width, int height, double focal, uint64_t s
     BundleCamera cam;
     cam.name = k.name;
     cam.intrinsics_index = i;
-    cam.cam_from_scene = LookAt(c, center, 0.02 * (i - 1.5));
+    cam.cam_from_scene = *CamFromSceneLookingAt(c, center, 0.02 * (i - 1.5));
     s.truth.cameras.push_back(cam);
   }
   // Targets: half on the floor, half on the wall, uniformly spread; keep

@@ -3,6 +3,8 @@
 // ceres::Jet against numeric differentiation.
 #include "opl/vision/camera_model.h"
 
+#include "opl/core/format.h"
+
 #include <random>
 #include <vector>
 
@@ -128,6 +130,38 @@ TEST(CameraModel, CameraPoseAndBounds) {
   EXPECT_FALSE(cam.InImage(Eigen::Vector2d(-0.6, 10)));
   EXPECT_TRUE(cam.InImage(Eigen::Vector2d(-0.4, 10)));
   EXPECT_FALSE(cam.InImage(Eigen::Vector2d(5471.6, 10)));
+}
+
+TEST(CameraModel, LookingAtPlacesTheTargetOnTheAxisImageUpIsSceneUp) {
+  Camera cam;
+  cam.intrinsics = TestIntrinsics();
+  const Eigen::Vector3d center(1.0, -3.0, 1.5), target(0.2, 0.4, 0.3);
+  auto pose = CamFromSceneLookingAt(center, target);
+  ASSERT_TRUE(pose.ok()) << pose.status().ToString();
+  cam.cam_from_scene = *pose;
+  EXPECT_LT((cam.CenterInScene() - center).norm(), 1e-12);
+  const Eigen::Vector3d t_cam = cam.cam_from_scene * target;
+  EXPECT_NEAR(t_cam.x(), 0.0, 1e-12);
+  EXPECT_NEAR(t_cam.y(), 0.0, 1e-12);
+  EXPECT_NEAR(t_cam.z(), (target - center).norm(), 1e-12);
+  // A point straight above the target appears above it in the image.
+  Eigen::Vector2d px_target, px_above;
+  ASSERT_TRUE(cam.Project(target, &px_target));
+  ASSERT_TRUE(cam.Project(target + Eigen::Vector3d(0, 0, 0.1), &px_above));
+  EXPECT_LT(px_above.y(), px_target.y() - 10.0);
+  EXPECT_NEAR(px_above.x(), px_target.x(), 1e-6 * cam.intrinsics.fx_px);
+  // Rolled by +90 deg the picture turns clockwise: "up" in the scene is now
+  // along +u (to the right) in the image.
+  cam.cam_from_scene = *CamFromSceneLookingAt(center, target, kPi / 2);
+  ASSERT_TRUE(cam.Project(target, &px_target));
+  ASSERT_TRUE(cam.Project(target + Eigen::Vector3d(0, 0, 0.1), &px_above));
+  EXPECT_GT(px_above.x(), px_target.x() + 10.0);
+  EXPECT_NEAR(px_above.y(), px_target.y(), 1e-6 * cam.intrinsics.fy_px);
+  // Straight down: defined (scene Y as up), target on the axis.
+  auto down = CamFromSceneLookingAt(Eigen::Vector3d(0, 0, 3), Eigen::Vector3d::Zero());
+  ASSERT_TRUE(down.ok());
+  EXPECT_LT((*down * Eigen::Vector3d::Zero()).head<2>().norm(), 1e-12);
+  EXPECT_FALSE(CamFromSceneLookingAt(center, center).ok());
 }
 
 TEST(CameraModel, ValidateNamesTheField) {

@@ -39,19 +39,10 @@ CameraIntrinsics Intrinsics(double f, bool distorted) {
 // A camera at `center` looking at `target`, X right, Y down (scene Z up).
 Camera LookAt(const std::string& name, const Eigen::Vector3d& center, const Eigen::Vector3d& target,
               const CameraIntrinsics& intrinsics) {
-  const Eigen::Vector3d z = (target - center).normalized();
-  Eigen::Vector3d up(0, 0, 1);
-  if (std::abs(z.dot(up)) > 0.99) up = Eigen::Vector3d(0, 1, 0);
-  const Eigen::Vector3d x = z.cross(up).normalized();
-  const Eigen::Vector3d y = z.cross(x);
-  Eigen::Matrix3d R;
-  R.row(0) = x;
-  R.row(1) = y;
-  R.row(2) = z;
   Camera c;
   c.name = name;
   c.intrinsics = intrinsics;
-  c.cam_from_scene = Rigid3d(R, -(R * center));
+  c.cam_from_scene = *CamFromSceneLookingAt(center, target);
   return c;
 }
 

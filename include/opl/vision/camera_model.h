@@ -98,6 +98,16 @@ struct Camera {
   Eigen::Vector3d CenterInScene() const;
 };
 
+// The pose of a camera at `center_in_scene` whose optical axis (+Z) points
+// at `target_in_scene`, with the scene's Z axis up: the camera's X axis is
+// horizontal (Z_cam x Z_scene) and its Y axis points down in the image;
+// when the optical axis is within 8 deg of vertical, the scene's Y axis
+// serves as "up" instead. Then rolled by `roll_rad` about the optical axis
+// (positive: the picture turns clockwise, scene-up moving towards +u).
+// InvalidArgument when the centre and the target coincide or are not finite.
+Result<Rigid3d> CamFromSceneLookingAt(const Eigen::Vector3d& center_in_scene,
+                                      const Eigen::Vector3d& target_in_scene, double roll_rad = 0.0);
+
 // Pixel of a point in the camera frame (double version); false behind.
 bool ProjectToPixel(const CameraIntrinsics& intrinsics, const Eigen::Vector3d& point_in_cam,
                     Eigen::Vector2d* pixel);

@@ -374,7 +374,6 @@ std::vector<Seed> FindSeeds(const Pool& pool, int k) {
   std::vector<Seed> seeds;
   if (n < 5) return seeds;
   k = std::min(k, n - 1);
-  std::vector<std::pair<double, int>> dist(n);
   std::vector<int> nb(k);
   std::vector<Eigen::Vector3d> nbp(k);  // the neighbours' points, contiguous
   std::vector<double> nbd(k);           // their distances, ascending
@@ -446,12 +445,11 @@ std::vector<Seed> FindSeeds(const Pool& pool, int k) {
         }
       }
     }
-    std::copy(knn.begin(), knn.end(), dist.begin());
-    for (int j = 0; j < k; ++j) nb[j] = dist[j].second;
+    for (int j = 0; j < k; ++j) nb[j] = knn[j].second;
     for (int j = 0; j < k; ++j) nbp[j] = pool.p[nb[j]];
-    for (int j = 0; j < k; ++j) nbd[j] = std::sqrt(dist[j].first);
+    for (int j = 0; j < k; ++j) nbd[j] = std::sqrt(knn[j].first);
     const Eigen::Vector3d pi = pool.p[i];
-    const double nearest = std::sqrt(dist[0].first);
+    const double nearest = std::sqrt(knn[0].first);
     axes.clear();
     for (int a = 0; a < k; ++a) {
       const Eigen::Vector3d va = pool.p[nb[a]] - pool.p[i];

@@ -1,0 +1,137 @@
+// Scene: a photogrammetry set-up as a value: the cameras, the coded targets on
+// the walls, the three targets of the scene frame, a scale artifact, the laser
+// module and the surface its grids land on, how spots and images look, and the
+// shots (which camera took which image, with which lasers on). Read from the
+// scene JSON (io/scene_json.h; docs/formats.md, "Scene JSON").
+//
+// One description serves two uses:
+//  - the virtual lab renders it (lab/render_scene.h; `opl_simulate images`):
+//    it needs everything, including the true camera poses and the module;
+//  - the image front end measures it (pipeline/measure_images.h;
+//    `opl_measure --images`): it needs the cameras' intrinsics, the tag size
+//    and the frame tags, the artifact (for calibration) and the shots; the
+//    true poses and the module, when present, are ignored (the front end
+//    finds the poses from the images and the module from the spots).
+//
+// Frames and units: the scene frame is the simulation's world, millimetres,
+// Z up. Tags are posed by their TAG frame (as lab/planar_target_image.h,
+// MakeTagTarget): origin at the centre of the black square, x to the right
+// and y down as printed, z into the wall (away from a viewer who reads the
+// tag). A camera's pose is cam_from_scene (camera_model.h: x right, y down,
+// z along the optical axis).
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "opl/core/status.h"
+#include "opl/geometry/rigid3.h"
+#include "opl/sim/module_design.h"
+#include "opl/vision/camera_model.h"
+
+namespace opl {
+
+struct SceneCamera {
+  std::string name;               // unique, non-empty
+  CameraIntrinsics intrinsics;    // calibrated (Validate()d), with the image size
+  // True pose (the virtual lab renders with it). Absent in a measured scene.
+  std::optional<Rigid3d> cam_from_scene;
+};
+
+struct SceneTag {
+  int id = 0;             // tag36h11 id, 0..586, unique in the scene
+  Rigid3d scene_from_tag; // true pose of the tag frame (header comment); may be
+                          // absent in a measured scene (identity then)
+};
+
+struct SceneTags {
+  std::string family = "tag36h11";  // the only family supported
+  // Edge of the black square, mm, > 0. The front end uses it only to start
+  // the solve at roughly the right scale (the result's scale is the laser
+  // module's or the artifact's); an approximate printed size is enough.
+  double size_mm = 100.0;
+  std::vector<SceneTag> tags;
+};
+
+// The scene frame of the measurement (vision/scene_frame.h): origin at the
+// centre of tag `origin_tag`, X towards the centre of `axis_tag`, XY plane
+// through the centre of `plane_tag`. Three distinct tag ids of the scene.
+struct SceneFrameTags {
+  int origin_tag = 0;
+  int axis_tag = 1;
+  int plane_tag = 2;
+};
+
+// A scale artifact (a bar) carrying two tags whose centres are a calibrated
+// distance apart.
+struct SceneArtifact {
+  int tag_1 = 0;
+  int tag_2 = 1;
+  double length_mm = 1000.0;      // calibrated distance between the centres, > 0
+  double length_sigma_mm = 0.0;   // its standard uncertainty, >= 0
+};
+
+// How laser spots look in the images.
+struct SpotLook {
+  // 1/e^2 diameter of the spot on the surface, mm, > 0. Each spot is drawn as
+  // the projection of that disc: elliptical where the surface is oblique.
+  double diameter_mm = 3.0;
+  // Peak of a spot as a fraction of full scale (> 1 saturates the centre).
+  double peak_fraction = 0.6;
+  // Speckle: contrast in [0, 1] (0 = clean spots) and grain, px (> 0).
+  double speckle_contrast = 0.0;
+  double speckle_grain_px = 1.5;
+};
+
+// How images are exposed and written.
+struct ImageLook {
+  int bit_depth = 8;               // 8 or 16 (PNG)
+  double background_level = 0.25;  // wall, fraction of full scale
+  double black_level = 0.05;       // tag black, fraction of full scale
+  double white_level = 0.6;        // tag white, fraction of full scale
+  double blur_sigma_px = 0.0;      // Gaussian PSF of the tags, px
+  double read_noise = 0.0;         // Gaussian read noise, fraction of full scale
+  double gain_e_per_dn = 0.0;      // shot noise (0: off), electrons per DN
+  int subpixels_per_axis = 2;      // tag rendering supersampling, 1..8
+};
+
+struct SceneShot {
+  std::string camera;               // a SceneCamera name
+  std::string file;                 // image file, relative to the images folder
+  std::vector<std::string> lasers;  // names of the module's sources that are on
+  int slice = 0;                    // calibration slice index (0 for a measurement)
+};
+
+struct Scene {
+  std::vector<SceneCamera> cameras;
+  SceneTags tags;
+  std::optional<SceneFrameTags> frame;
+  std::optional<SceneArtifact> artifact;
+  // The true module and the surface its spots land on (sim/module_design.h).
+  // For a calibration scene the design's surface is a list of planes (the
+  // screen at each depth, PlaneListSurface) and shot.slice selects the plane
+  // a shot shows; any other surface has the one slice 0.
+  std::optional<ModuleDesign> module;
+  SpotLook spots;
+  ImageLook image;
+  uint64_t seed = 1;  // of every random draw of the rendering
+  std::vector<SceneShot> shots;
+
+  // Checks the description as a measurement input: at least one camera,
+  // unique names, valid intrinsics, unique tag ids within 0..586, frame and
+  // artifact tags present among the tags, looks in range, every shot naming
+  // a camera (and lasers of the module when a module is given), unique
+  // files. The message names the field, e.g. "shots[3].camera: no camera
+  // named 'cam9'".
+  Status Validate() const;
+  // Validate() plus what rendering needs: every camera posed, a module.
+  Status ValidateForRendering() const;
+
+  const SceneCamera* FindCamera(const std::string& name) const;  // nullptr if none
+  const SceneTag* FindTag(int id) const;                          // nullptr if none
+};
+
+}  // namespace opl

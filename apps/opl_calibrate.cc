@@ -9,10 +9,13 @@
 #include <vector>
 
 #include "cli_common.h"
+#include "progress_bar.h"
 #include "spots_input.h"
 #include "opl/calibrate/calibrate_module.h"
 #include "opl/identify/identify_slices.h"
 #include "opl/io/module_design_json.h"
+#include "opl/io/scene_json.h"
+#include "opl/pipeline/calibrate_images.h"
 #include "opl/sim/module_design.h"
 #include "opl/io/atomic_file.h"
 #include "opl/io/module_calibration_json.h"
@@ -42,6 +45,9 @@ struct Args {
   std::vector<std::string> artifact_ids;
   double artifact_length_mm = 0.0;
   double artifact_u_mm = 0.0;
+  std::string images_dir;
+  std::string scene_path;
+  int threads = 0;
 };
 
 // Reads the artifact's two targets from the targets file and computes the
@@ -88,6 +94,91 @@ std::optional<int> ArtifactScaling(const Args& args,
   return std::nullopt;
 }
 
+// Writes the calibration JSON (and the --report folder), everything made
+// before the first write; prints `text_before` and the summary.
+int WriteOutputs(const Args& args, const opl::ModuleCalibrationResult& result,
+                 const std::string& text_before) {
+  using namespace opl;
+  Result<std::string> json = FormatModuleCalibrationJson(result.calibration);
+  if (!json.ok()) return cli::Fail(kTool, json.status().message(), cli::kExitNoSolution);
+
+  // Everything is computed (and the PNGs rendered) before the first write.
+  if (!args.report_dir.empty()) {
+    std::vector<std::pair<std::string, std::vector<unsigned char>>> images;
+    for (const SourceCalibrationResult& s : result.sources) {
+      Result<std::vector<unsigned char>> png = RenderGridHeatmapPng(PointToRayHeatmap(s));
+      if (!png.ok()) return cli::Fail(kTool, png.status().message(), cli::kExitInternalError);
+      images.emplace_back("heatmap_" + s.calibration.name + ".png", std::move(*png));
+    }
+    std::error_code ec;
+    std::filesystem::create_directories(args.report_dir, ec);
+    if (ec) {
+      return cli::Fail(kTool, args.report_dir + ": cannot create the report folder: " + ec.message(),
+                       cli::kExitWriteFailed);
+    }
+    const std::filesystem::path dir(args.report_dir);
+    for (const auto& [name, text] :
+         {std::pair<std::string, std::string>{"beams.csv", BeamQualityCsv(result)},
+          {"samples.csv", SampleResidualsCsv(result)}}) {
+      if (Status st = WriteFileAtomically((dir / name).string(), text); !st.ok()) {
+        return cli::FailWrite(kTool, st);
+      }
+    }
+    for (const auto& [name, bytes] : images) {
+      const std::string text(bytes.begin(), bytes.end());
+      if (Status st = WriteFileAtomically((dir / name).string(), text); !st.ok()) {
+        return cli::FailWrite(kTool, st);
+      }
+    }
+  }
+  if (Status st = WriteFileAtomically(args.out_path, *json); !st.ok()) {
+    return cli::FailWrite(kTool, st);
+  }
+  return cli::PrintToStdout(kTool, text_before + CalibrationSummaryText(result));
+}
+
+// opl_calibrate --images: the image front end, the artifact scaling, the
+// identification against --design, the calibration.
+int RunImages(const Args& args) {
+  using namespace opl;
+  if (args.design_path.empty()) {
+    return cli::Fail(kTool, "--images needs --design (the nominal patterns to identify the grids)",
+                     cli::kExitUsage);
+  }
+  if (!args.targets_path.empty()) {
+    return cli::Fail(kTool,
+                     "--targets/--artifact are for --spots; with --images the scene JSON's "
+                     "'artifact' names the artifact's tags",
+                     cli::kExitUsage);
+  }
+  Result<Scene> scene = ReadSceneJson(args.scene_path);
+  if (!scene.ok()) return cli::FailInput(kTool, scene.status());
+  Result<ModuleDesign> design = ReadModuleDesignJson(args.design_path);
+  if (!design.ok()) return cli::FailInput(kTool, design.status());
+  Result<ModuleCalibration> nominal = ExactCalibration(*design);
+  if (!nominal.ok()) return cli::FailInput(kTool, nominal.status());
+  ImageCalibrationOptions options;
+  if (args.beams_per_side > 0) options.calibrate.beams_per_side = args.beams_per_side;
+  options.calibrate.source.loss = args.loss == "cauchy" ? RobustLoss::kCauchy
+                                  : args.loss == "huber" ? RobustLoss::kHuber
+                                                         : RobustLoss::kNone;
+  options.calibrate.source.outlier_threshold = args.outlier_threshold;
+  options.front_end.num_threads = args.threads;
+  cli::ProgressBar bar("images", cli::StderrIsTerminal());
+  options.front_end.progress = [&](const std::string& stage, int done, int total) {
+    if (stage == "detect") {
+      bar.Update(done, total);
+    } else {
+      bar.Finish();
+    }
+  };
+  Result<ImageCalibrationReport> report =
+      CalibrateFromImages(*scene, args.images_dir, *nominal, options);
+  bar.Finish();
+  if (!report.ok()) return cli::FailInput(kTool, report.status());
+  return WriteOutputs(args, report->calibration, report->ToText());
+}
+
 int Run(int argc, char** argv) {
   using namespace opl;
   Args args;
@@ -118,8 +209,21 @@ int Run(int argc, char** argv) {
       kTool);
   app.add_option("--spots", args.spots.path,
                  "Spots CSV of the session: [source,beam,]x,y,z[,sx,sy,sz],slice")
-      ->required()
       ->type_name("FILE");
+  CLI::Option* images =
+      app.add_option("--images", args.images_dir,
+                     "Folder of the session's images (instead of --spots); needs --scene and\n"
+                     "--design")
+          ->type_name("DIR");
+  CLI::Option* scene =
+      app.add_option("--scene", args.scene_path,
+                     "Scene JSON of the session: cameras, tags, frame and artifact tags, shots\n"
+                     "with their lasers and slice (docs/formats.md)")
+          ->type_name("FILE");
+  app.add_option("--threads", args.threads, "With --images: detection threads, >= 0; 0 = every core")
+      ->capture_default_str();
+  images->needs(scene);
+  scene->needs(images);
   opl::cli::AddPointTableOptions(app, &args.spots);
   app.add_option("--design", args.design_path,
                  "Module design JSON (docs/simulation.md): the nominal patterns and mounting of\n"
@@ -174,8 +278,19 @@ int Run(int argc, char** argv) {
       "  opl_calibrate --spots session.txt --columns id,x,y,z,slice --design design.json \\\n"
       "      --out module.json\n"
       "  opl_calibrate --spots session.csv --targets targets.csv --artifact T1,T2 \\\n"
-      "      --artifact-length-mm 1677.66 --artifact-u-mm 0.005 --out module.json\n"));
+      "      --artifact-length-mm 1677.66 --artifact-u-mm 0.005 --out module.json\n"
+      "  opl_calibrate --images session/ --scene session.json --design design.json \\\n"
+      "      --out module.json\n"));
   if (std::optional<int> code = cli::ParseCommandLine(app, argc, argv)) return *code;
+  if (args.spots.path.empty() == args.images_dir.empty()) {
+    return cli::Fail(kTool, "give either --spots or --images (with --scene) (see --help)",
+                     cli::kExitUsage);
+  }
+  if (args.threads < 0) {
+    return cli::Fail(kTool, "--threads must be >= 0, got " + std::to_string(args.threads),
+                     cli::kExitUsage);
+  }
+  if (!args.images_dir.empty()) return RunImages(args);
 
   CalibrateModuleOptions options;
   if (app.count("--beams-per-side") > 0) options.beams_per_side = args.beams_per_side;
@@ -249,42 +364,7 @@ int Run(int argc, char** argv) {
   Result<ModuleCalibrationResult> result =
       CalibrateModule(spots->spots, spots->slices, scaling, options);
   if (!result.ok()) return cli::FailInput(kTool, result.status());
-  Result<std::string> json = FormatModuleCalibrationJson(result->calibration);
-  if (!json.ok()) return cli::Fail(kTool, json.status().message(), cli::kExitNoSolution);
-
-  // Everything is computed (and the PNGs rendered) before the first write.
-  if (!args.report_dir.empty()) {
-    std::vector<std::pair<std::string, std::vector<unsigned char>>> images;
-    for (const SourceCalibrationResult& s : result->sources) {
-      Result<std::vector<unsigned char>> png = RenderGridHeatmapPng(PointToRayHeatmap(s));
-      if (!png.ok()) return cli::Fail(kTool, png.status().message(), cli::kExitInternalError);
-      images.emplace_back("heatmap_" + s.calibration.name + ".png", std::move(*png));
-    }
-    std::error_code ec;
-    std::filesystem::create_directories(args.report_dir, ec);
-    if (ec) {
-      return cli::Fail(kTool, args.report_dir + ": cannot create the report folder: " + ec.message(),
-                       cli::kExitWriteFailed);
-    }
-    const std::filesystem::path dir(args.report_dir);
-    for (const auto& [name, text] :
-         {std::pair<std::string, std::string>{"beams.csv", BeamQualityCsv(*result)},
-          {"samples.csv", SampleResidualsCsv(*result)}}) {
-      if (Status st = WriteFileAtomically((dir / name).string(), text); !st.ok()) {
-        return cli::FailWrite(kTool, st);
-      }
-    }
-    for (const auto& [name, bytes] : images) {
-      const std::string text(bytes.begin(), bytes.end());
-      if (Status st = WriteFileAtomically((dir / name).string(), text); !st.ok()) {
-        return cli::FailWrite(kTool, st);
-      }
-    }
-  }
-  if (Status st = WriteFileAtomically(args.out_path, *json); !st.ok()) {
-    return cli::FailWrite(kTool, st);
-  }
-  return cli::PrintToStdout(kTool, identification_text + CalibrationSummaryText(*result));
+  return WriteOutputs(args, *result, identification_text);
 }
 
 }  // namespace

@@ -5,12 +5,15 @@
 #include <string>
 
 #include "cli_common.h"
+#include "progress_bar.h"
 #include "spots_input.h"
 #include "opl/io/atomic_file.h"
+#include "opl/io/scene_json.h"
 #include "opl/io/module_calibration_json.h"
 #include "opl/io/points_csv.h"
 #include "opl/io/spots_csv.h"
 #include "opl/pipeline/measure.h"
+#include "opl/pipeline/measure_images.h"
 
 namespace {
 
@@ -23,7 +26,70 @@ struct Args {
   bool json = false;
   std::string apply_path;
   std::string out_path;
+  std::string images_dir;
+  std::string scene_path;
+  std::string spots_out_path;
+  int threads = 0;
 };
+
+// opl_measure --images: the image front end, then the measurement.
+int RunImages(const Args& args) {
+  using namespace opl;
+  if (!args.identified_path.empty()) {
+    return cli::Fail(kTool, "--identified is for --spots; with --images use --spots-out",
+                     cli::kExitUsage);
+  }
+  if (args.threads < 0) {
+    return cli::Fail(kTool, "--threads must be >= 0, got " + std::to_string(args.threads),
+                     cli::kExitUsage);
+  }
+  Result<ModuleCalibration> calibration = ReadModuleCalibrationJson(args.calibration_path);
+  if (!calibration.ok()) return cli::FailInput(kTool, calibration.status());
+  Result<Scene> scene = ReadSceneJson(args.scene_path);
+  if (!scene.ok()) return cli::FailInput(kTool, scene.status());
+  std::optional<PointsCsv> points;
+  if (!args.apply_path.empty()) {
+    Result<PointsCsv> read = PointsCsv::Read(args.apply_path);
+    if (!read.ok()) return cli::FailInput(kTool, read.status());
+    points = std::move(read).value();
+  }
+  ImageMeasureOptions options;
+  options.front_end.num_threads = args.threads;
+  cli::ProgressBar bar("images", cli::StderrIsTerminal());
+  options.front_end.progress = [&](const std::string& stage, int done, int total) {
+    if (stage == "detect") {
+      bar.Update(done, total);
+    } else {
+      bar.Finish();
+    }
+  };
+  Result<ImageMeasureReport> report =
+      MeasureScaleFromImages(*scene, args.images_dir, *calibration, options);
+  bar.Finish();
+  if (!report.ok()) return cli::FailInput(kTool, report.status());
+
+  std::string spots_csv;
+  if (!args.spots_out_path.empty()) {
+    const std::vector<Spot>& labelled = report->spots;
+    Result<std::string> csv = FormatSpotsCsv(labelled, {});
+    if (!csv.ok()) return cli::FailInput(kTool, csv.status());
+    spots_csv = std::move(*csv);
+  }
+  if (points) {
+    if (Status st = points->Scale(report->measure.scale.scale_factor); !st.ok()) {
+      return cli::Fail(kTool, st.message(), cli::kExitNoSolution);
+    }
+    if (Status st = WriteFileAtomically(args.out_path, points->Format()); !st.ok()) {
+      return cli::FailWrite(kTool, st);
+    }
+  }
+  if (!args.spots_out_path.empty()) {
+    if (Status st = WriteFileAtomically(args.spots_out_path, spots_csv); !st.ok()) {
+      return cli::FailWrite(kTool, st);
+    }
+  }
+  return cli::PrintToStdout(kTool, args.json ? report->ToJson() : report->ToText());
+}
 
 int Run(int argc, char** argv) {
   using namespace opl;
@@ -43,7 +109,16 @@ int Run(int argc, char** argv) {
       "mixed, spots missing and spurious points present. A grid that cannot be\n"
       "identified for sure (too few spots, a pattern symmetric under the observed roll)\n"
       "is reported and not used: the tool refuses rather than guesses. --identified\n"
-      "writes every point with the source and beam it was given.\n",
+      "writes every point with the source and beam it was given.\n"
+      "\n"
+      "From photographs (--images DIR --scene scene.json): the images listed as shots in\n"
+      "the scene JSON (docs/formats.md, 'Scene JSON': calibrated cameras, the nominal tag\n"
+      "size, the three frame tags, which lasers were on in each shot) are read from DIR;\n"
+      "AprilTag (tag36h11) targets and laser spots are detected in every image, the\n"
+      "cameras posed from the tags, the spots matched across views and everything refined\n"
+      "in one bundle adjustment (docs/images.md); the 3D spots are then identified and\n"
+      "measured as above. A per-image report (tags, spots detected and matched, RMS)\n"
+      "comes first; progress is shown on a terminal. --spots-out writes the 3D spots.\n",
       kTool);
   app.add_option("--calibration", args.calibration_path,
                  "Module calibration JSON (docs/formats.md, 'Module calibration JSON')")
@@ -52,9 +127,26 @@ int Run(int argc, char** argv) {
   app.add_option("--spots", args.spots.path,
                  "Spots CSV: [source,beam,]x,y,z[,sx,sy,sz] in scene units (docs/formats.md);\n"
                  "empty or absent source/beam: identified. With --columns: any point table")
-      ->required()
       ->type_name("FILE");
   cli::AddPointTableOptions(app, &args.spots);
+  CLI::Option* images =
+      app.add_option("--images", args.images_dir,
+                     "Folder of the shots' image files (instead of --spots); needs --scene")
+          ->type_name("DIR");
+  CLI::Option* scene =
+      app.add_option("--scene", args.scene_path,
+                     "Scene JSON: cameras, tags, frame tags, shots (docs/formats.md)")
+          ->type_name("FILE");
+  CLI::Option* spots_out =
+      app.add_option("--spots-out", args.spots_out_path,
+                     "With --images: write the 3D spots as a spots CSV with the source and beam\n"
+                     "each was assigned and its sx,sy,sz (atomically)")
+          ->type_name("FILE");
+  app.add_option("--threads", args.threads, "With --images: detection threads, >= 0; 0 = every core")
+      ->capture_default_str();
+  images->needs(scene);
+  scene->needs(images);
+  spots_out->needs(images);
   app.add_option("--identified", args.identified_path,
                  "Write the spots as a spots CSV with the source and beam each was assigned\n"
                  "(empty when unassigned), in input order, plus an `id` column when the input\n"
@@ -76,8 +168,14 @@ int Run(int argc, char** argv) {
       "  opl_measure --calibration cal.json --spots spots.csv --json > report.json\n"
       "  opl_measure --calibration cal.json --spots spots.csv --apply scene.csv --out scene_mm.csv\n"
       "  opl_measure --calibration cal.json --spots export.txt --columns id,x,y,z,sx,sy,sz \\\n"
-      "      --skip-rows 1 --identified sorted.csv\n"));
+      "      --skip-rows 1 --identified sorted.csv\n"
+      "  opl_measure --calibration cal.json --images shots/ --scene scene.json\n"));
   if (std::optional<int> code = opl::cli::ParseCommandLine(app, argc, argv)) return *code;
+  if (args.spots.path.empty() == args.images_dir.empty()) {
+    return cli::Fail(kTool, "give either --spots or --images (with --scene) (see --help)",
+                     cli::kExitUsage);
+  }
+  if (!args.images_dir.empty()) return RunImages(args);
 
   // Read every input first: input errors (3) come before any computation.
   Result<ModuleCalibration> calibration = ReadModuleCalibrationJson(args.calibration_path);

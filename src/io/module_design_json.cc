@@ -9,7 +9,6 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
-#include <memory>
 #include <set>
 #include <sstream>
 #include <string>
@@ -17,6 +16,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "io/json_reader.h"
+#include "io/module_design_json_internal.h"
 #include "opl/geometry/rotation.h"
 
 namespace opl {
@@ -25,244 +26,35 @@ namespace {
 using json = nlohmann::json;
 
 constexpr int kVersion = 1;
-std::string Describe(const json& v) {
-  std::string d = v.dump();
-  if (d.size() > 40) d = d.substr(0, 37) + "...";
-  return d;
-}
 
-// (line, column), 1-based, of byte offset `byte` (0-based) of `text`.
-std::pair<size_t, size_t> LineColumn(const std::string& text, size_t byte) {
-  size_t line = 1, column = 1;
-  for (size_t i = 0; i < byte && i < text.size(); ++i) {
-    if (text[i] == '\n') {
-      ++line;
-      column = 1;
-    } else {
-      ++column;
-    }
-  }
-  return {line, column};
-}
-
-// Detects duplicate keys (nlohmann keeps the last one silently) and records
-// the field path of the first one.
-class DuplicateKeyFinder {
+class Reader : public json_internal::JsonReader {
  public:
-  bool operator()(int /*depth*/, json::parse_event_t event, json& parsed) {
-    switch (event) {
-      case json::parse_event_t::object_start:
-      case json::parse_event_t::array_start: {
-        std::string path;
-        if (!frames_.empty()) {
-          const Frame& parent = frames_.back();
-          path = parent.is_array ? parent.path + "[" + std::to_string(parent.count) + "]"
-                                 : Join(parent.path, parent.last_key);
-        }
-        frames_.push_back({event == json::parse_event_t::array_start, 0, path, "", {}});
-        break;
-      }
-      case json::parse_event_t::key: {
-        if (frames_.empty()) break;
-        Frame& f = frames_.back();
-        f.last_key = parsed.is_string() ? parsed.get<std::string>() : parsed.dump();
-        if (!f.keys.insert(f.last_key).second && duplicate_.empty()) {
-          duplicate_ = Join(f.path, f.last_key);
-        }
-        break;
-      }
-      case json::parse_event_t::object_end:
-      case json::parse_event_t::array_end:
-        if (!frames_.empty()) frames_.pop_back();
-        if (!frames_.empty() && frames_.back().is_array) ++frames_.back().count;
-        break;
-      case json::parse_event_t::value:
-        if (!frames_.empty() && frames_.back().is_array) ++frames_.back().count;
-        break;
-    }
-    return true;
-  }
-  const std::string& duplicate() const { return duplicate_; }
-
- private:
-  struct Frame {
-    bool is_array = false;
-    size_t count = 0;
-    std::string path;
-    std::string last_key;
-    std::set<std::string> keys;
-  };
-  static std::string Join(const std::string& path, const std::string& key) {
-    return path.empty() ? key : path + "." + key;
-  }
-  std::vector<Frame> frames_;
-  std::string duplicate_;
-};
-
-class Reader {
- public:
-  Reader(std::string name, std::string base_dir)
-      : name_(std::move(name)), base_dir_(std::move(base_dir)) {}
+  Reader(std::string name, std::string base_dir, std::string prefix = "")
+      : JsonReader(std::move(name), std::move(prefix)), base_dir_(std::move(base_dir)) {}
 
   Result<ModuleDesign> Parse(const std::string& text) {
-    json root;
-    // nlohmann copies the callback: keep the finder's state behind a shared_ptr.
-    auto finder = std::make_shared<DuplicateKeyFinder>();
-    try {
-      root = json::parse(
-          text, [finder](int depth, json::parse_event_t event, json& parsed) {
-            return (*finder)(depth, event, parsed);
-          });
-    } catch (const json::parse_error& e) {
-      const auto [line, column] = LineColumn(text, e.byte > 0 ? e.byte - 1 : 0);
-      return Status::ParseError(name_ + ":" + std::to_string(line) + ":" +
-                                std::to_string(column) + ": invalid JSON: " + StripNlohmann(e.what()));
-    } catch (const json::exception& e) {
-      // e.g. out_of_range.406 "number overflow parsing '1e999'": locate the literal.
-      const std::string what = StripNlohmann(e.what());
-      std::string where = name_;
-      const size_t q = what.find('\'');
-      const size_t q2 = q == std::string::npos ? q : what.find('\'', q + 1);
-      if (q2 != std::string::npos) {
-        const size_t at = text.find(what.substr(q + 1, q2 - q - 1));
-        if (at != std::string::npos) {
-          const auto [line, column] = LineColumn(text, at);
-          where += ":" + std::to_string(line) + ":" + std::to_string(column);
-        }
-      }
-      return Status::ParseError(where + ": invalid JSON: " + what +
-                                " (numbers must be finite doubles)");
+    Result<json> root = ParseText(text);
+    if (!root.ok()) return root.status();
+    return ParseRoot(*root, /*header_required=*/true);
+  }
+
+  // The design object; format and version are optional when !header_required
+  // (a design inlined in another document) but checked when present.
+  Result<ModuleDesign> ParseRoot(const json& root, bool header_required) {
+    if (!root.is_object()) {
+      return Error("", "expected a JSON object" +
+                           std::string(header_required ? " at the top level" : "") + ", got " +
+                           Describe(root));
     }
-    if (!finder->duplicate().empty()) {
-      return Error(finder->duplicate(), "duplicate key (each field may appear once)");
+    if (header_required || Find(root, "format") != nullptr || Find(root, "version") != nullptr) {
+      OPL_RETURN_IF_ERROR(CheckFormatAndVersion(root, "opl.module_design", kVersion));
     }
-    return ParseRoot(root);
+    return ParseBody(root);
   }
 
  private:
-  static std::string StripNlohmann(const std::string& what) {
-    // "[json.exception.parse_error.101] parse error at line 3, column 7: syntax error ..."
-    std::string s = what;
-    if (!s.empty() && s[0] == '[') {
-      const size_t close = s.find("] ");
-      if (close != std::string::npos) s = s.substr(close + 2);
-    }
-    const std::string at = "parse error at line ";
-    if (s.compare(0, at.size(), at) == 0) {
-      const size_t colon = s.find(": ");
-      if (colon != std::string::npos) s = s.substr(colon + 2);
-    }
-    return s;
-  }
-
-  Status Error(const std::string& path, const std::string& what) const {
-    return Status::ParseError(name_ + ": " + (path.empty() ? "" : path + ": ") + what);
-  }
-
-  static std::string Join(const std::string& path, const std::string& key) {
-    return path.empty() ? key : path + "." + key;
-  }
-
-  Status CheckObject(const json& v, const std::string& path) const {
-    if (!v.is_object()) return Error(path, "expected an object, got " + Describe(v));
-    return Status::Ok();
-  }
-
-  Status CheckKeys(const json& obj, const std::string& path,
-                   const std::set<std::string>& allowed) const {
-    for (auto it = obj.begin(); it != obj.end(); ++it) {
-      if (!allowed.count(it.key())) {
-        std::string list;
-        for (const std::string& k : allowed) list += (list.empty() ? "" : ", ") + k;
-        return Error(Join(path, it.key()), "unknown field (allowed here: " + list + ")");
-      }
-    }
-    return Status::Ok();
-  }
-
-  // The field, or nullptr when absent.
-  static const json* Find(const json& obj, const std::string& key) {
-    const auto it = obj.find(key);
-    return it == obj.end() ? nullptr : &*it;
-  }
-
-  Status Require(const json& obj, const std::string& path, const std::string& key,
-                 const json** out) const {
-    *out = Find(obj, key);
-    if (*out == nullptr) return Error(Join(path, key), "missing field");
-    return Status::Ok();
-  }
-
-  Status Number(const json& v, const std::string& path, double* out) const {
-    if (!v.is_number()) return Error(path, "expected a number, got " + Describe(v));
-    *out = v.get<double>();
-    if (!std::isfinite(*out)) return Error(path, "not a finite number");
-    return Status::Ok();
-  }
-
-  Status Integer(const json& v, const std::string& path, int* out) const {
-    if (!v.is_number_integer()) return Error(path, "expected an integer, got " + Describe(v));
-    const auto x = v.get<long long>();
-    if (x < -1000000000LL || x > 1000000000LL) return Error(path, "integer out of range");
-    *out = static_cast<int>(x);
-    return Status::Ok();
-  }
-
-  Status String(const json& v, const std::string& path, std::string* out) const {
-    if (!v.is_string()) return Error(path, "expected a string, got " + Describe(v));
-    *out = v.get<std::string>();
-    return Status::Ok();
-  }
-
-  Status Vec3(const json& v, const std::string& path, Eigen::Vector3d* out) const {
-    if (!v.is_array() || v.size() != 3) {
-      return Error(path, "expected an array of 3 numbers, got " + Describe(v));
-    }
-    for (int k = 0; k < 3; ++k) {
-      OPL_RETURN_IF_ERROR(Number(v[k], path + "[" + std::to_string(k) + "]", &(*out)[k]));
-    }
-    return Status::Ok();
-  }
-
-  Status RequiredNumber(const json& obj, const std::string& path, const std::string& key,
-                        double* out) const {
+  Result<ModuleDesign> ParseBody(const json& root) {
     const json* v = nullptr;
-    OPL_RETURN_IF_ERROR(Require(obj, path, key, &v));
-    return Number(*v, Join(path, key), out);
-  }
-
-  Status RequiredVec3(const json& obj, const std::string& path, const std::string& key,
-                      Eigen::Vector3d* out) const {
-    const json* v = nullptr;
-    OPL_RETURN_IF_ERROR(Require(obj, path, key, &v));
-    return Vec3(*v, Join(path, key), out);
-  }
-
-  Status NonZeroVec3(const json& obj, const std::string& path, const std::string& key,
-                     Eigen::Vector3d* out) const {
-    OPL_RETURN_IF_ERROR(RequiredVec3(obj, path, key, out));
-    if (out->norm() == 0.0) return Error(Join(path, key), "must not be the zero vector");
-    return Status::Ok();
-  }
-
-  Result<ModuleDesign> ParseRoot(const json& root) {
-    if (!root.is_object()) {
-      return Error("", "expected a JSON object at the top level, got " + Describe(root));
-    }
-    const json* v = nullptr;
-    std::string format;
-    OPL_RETURN_IF_ERROR(Require(root, "", "format", &v));
-    OPL_RETURN_IF_ERROR(String(*v, "format", &format));
-    if (format != "opl.module_design") {
-      return Error("format", "expected \"opl.module_design\", got " + Describe(*v));
-    }
-    int version = 0;
-    OPL_RETURN_IF_ERROR(Require(root, "", "version", &v));
-    OPL_RETURN_IF_ERROR(Integer(*v, "version", &version));
-    if (version != kVersion) {
-      return Error("version", "unsupported version " + std::to_string(version) +
-                                  " (this reader reads version " + std::to_string(kVersion) + ")");
-    }
     OPL_RETURN_IF_ERROR(CheckKeys(root, "",
                                   {"format", "version", "description", "sources", "surface",
                                    "spot_noise_mm", "noise_frame_rotation_xyz_rad"}));
@@ -386,8 +178,9 @@ class Reader {
       source->pattern_file = p.string();
       Result<BeamPattern> read = ReadPatternCsv(source->pattern_file);
       if (!read.ok()) {
+        // The pattern file's own code (IoError or ParseError), named by field.
         return Status(read.status().code(),
-                      name_ + ": " + path + ".pattern_file: " + read.status().message());
+                      Error(path + ".pattern_file", read.status().message()).message());
       }
       if (n == nullptr) {
         source->beams_per_side = read->beams_per_side();
@@ -497,7 +290,6 @@ class Reader {
     return NonZeroVec3(s, path, "normal", &p->normal);
   }
 
-  std::string name_;
   std::string base_dir_;
 };
 
@@ -511,6 +303,17 @@ Result<ModuleDesign> ParseModuleDesignJson(const std::string& text,
   } catch (const std::exception& e) {
     // Defensive: nothing above should throw past the parse, but never let it escape.
     return Status::ParseError(name_for_messages + ": " + e.what());
+  }
+}
+
+Result<ModuleDesign> ParseModuleDesignValue(const nlohmann::json& value,
+                                            const std::string& name_for_messages,
+                                            const std::string& field_path,
+                                            const std::string& base_dir) {
+  try {
+    return Reader(name_for_messages, base_dir, field_path).ParseRoot(value, false);
+  } catch (const std::exception& e) {
+    return Status::ParseError(name_for_messages + ": " + field_path + ": " + e.what());
   }
 }
 

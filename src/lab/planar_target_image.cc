@@ -93,6 +93,63 @@ Result<cv::Mat> TextureAsDouble(const cv::Mat& texture, int index) {
   return out;
 }
 
+// Sub-pixel values kept only in square tiles of kTilePx x kTilePx pixels
+// (kTilePx n sub-pixels a side), allocated, at the background level, the
+// first time a target touches them.
+class SubpixelTiles {
+ public:
+  static constexpr int kTilePx = 64;
+
+  SubpixelTiles(int width, int height, int n, double background)
+      : width_(width), height_(height), n_(n), background_(background),
+        tiles_x_((width + kTilePx - 1) / kTilePx), tiles_y_((height + kTilePx - 1) / kTilePx),
+        tiles_(static_cast<size_t>(tiles_x_) * static_cast<size_t>(tiles_y_)) {}
+
+  // The value of sub-pixel (row, col) of the sub-pixel grid (n H x n W).
+  double& At(int row, int col) {
+    const int side = kTilePx * n_;
+    const int ty = row / side, tx = col / side;
+    cv::Mat& tile = tiles_[static_cast<size_t>(ty) * static_cast<size_t>(tiles_x_) +
+                           static_cast<size_t>(tx)];
+    if (tile.empty()) tile = cv::Mat(TileRect(tx, ty).height * n_, TileRect(tx, ty).width * n_,
+                                     CV_64FC1, cv::Scalar(background_));
+    return tile.at<double>(row - ty * side, col - tx * side);
+  }
+
+  // The pixel image (width x height, CV_64F): the mean of every pixel's
+  // sub-pixels (cv::resize INTER_AREA, which averages whole n x n blocks),
+  // the background where no tile was allocated.
+  cv::Mat Pixels() const {
+    cv::Mat image(height_, width_, CV_64FC1, cv::Scalar(background_));
+    for (int ty = 0; ty < tiles_y_; ++ty) {
+      for (int tx = 0; tx < tiles_x_; ++tx) {
+        const cv::Mat& tile = tiles_[static_cast<size_t>(ty) * static_cast<size_t>(tiles_x_) +
+                                     static_cast<size_t>(tx)];
+        if (tile.empty()) continue;
+        const cv::Rect rect = TileRect(tx, ty);
+        if (n_ == 1) {
+          tile.copyTo(image(rect));
+        } else {
+          cv::Mat pixels;
+          cv::resize(tile, pixels, rect.size(), 0.0, 0.0, cv::INTER_AREA);
+          pixels.copyTo(image(rect));
+        }
+      }
+    }
+    return image;
+  }
+
+ private:
+  cv::Rect TileRect(int tx, int ty) const {
+    const int x0 = tx * kTilePx, y0 = ty * kTilePx;
+    return cv::Rect(x0, y0, std::min(kTilePx, width_ - x0), std::min(kTilePx, height_ - y0));
+  }
+  int width_, height_, n_;
+  double background_;
+  int tiles_x_, tiles_y_;
+  std::vector<cv::Mat> tiles_;
+};
+
 }  // namespace
 
 Status TargetRenderOptions::Validate() const {
@@ -203,6 +260,23 @@ Result<PlanarTarget> MakeTagBoardTarget(const TagBoard& board, const Rigid3d& sc
 
 Result<PlanarTargetRenderer> PlanarTargetRenderer::Create(const Camera& camera,
                                                           int subpixels_per_axis) {
+  Result<PlanarTargetRenderer> made = CreateOnDemand(camera, subpixels_per_axis);
+  if (!made.ok()) return made;
+  PlanarTargetRenderer& r = *made;
+  std::vector<Eigen::Vector2d> rays(static_cast<size_t>(r.grid_cols_) *
+                                    static_cast<size_t>(r.grid_rows_));
+  for (int i = 0; i < r.grid_rows_; ++i) {
+    for (int j = 0; j < r.grid_cols_; ++j) {
+      rays[static_cast<size_t>(i) * static_cast<size_t>(r.grid_cols_) + static_cast<size_t>(j)] =
+          r.RayAt(i, j);
+    }
+  }
+  r.rays_ = std::move(rays);
+  return made;
+}
+
+Result<PlanarTargetRenderer> PlanarTargetRenderer::CreateOnDemand(const Camera& camera,
+                                                                  int subpixels_per_axis) {
   {
     Status s = camera.intrinsics.Validate();
     if (!s.ok()) return Status::InvalidArgument("camera '" + camera.name + "': " + s.message());
@@ -214,21 +288,21 @@ Result<PlanarTargetRenderer> PlanarTargetRenderer::Create(const Camera& camera,
   PlanarTargetRenderer r;
   r.camera_ = camera;
   r.subpixels_ = subpixels_per_axis;
-  const int n = subpixels_per_axis;
-  r.grid_cols_ = n * camera.intrinsics.width_px + 1;
-  r.grid_rows_ = n * camera.intrinsics.height_px + 1;
-  r.rays_.resize(static_cast<size_t>(r.grid_cols_) * static_cast<size_t>(r.grid_rows_));
-  const double nan = std::numeric_limits<double>::quiet_NaN();
-  for (int i = 0; i < r.grid_rows_; ++i) {
-    const double v = -0.5 + static_cast<double>(i) / n;
-    for (int j = 0; j < r.grid_cols_; ++j) {
-      const double u = -0.5 + static_cast<double>(j) / n;
-      Result<Eigen::Vector2d> xy = UndistortPixel(camera.intrinsics, Eigen::Vector2d(u, v));
-      r.rays_[static_cast<size_t>(i) * static_cast<size_t>(r.grid_cols_) + static_cast<size_t>(j)] =
-          xy.ok() ? *xy : Eigen::Vector2d(nan, nan);
-    }
-  }
+  r.grid_cols_ = subpixels_per_axis * camera.intrinsics.width_px + 1;
+  r.grid_rows_ = subpixels_per_axis * camera.intrinsics.height_px + 1;
   return r;
+}
+
+Eigen::Vector2d PlanarTargetRenderer::RayAt(int grid_row, int grid_col) const {
+  if (!rays_.empty()) {
+    return rays_[static_cast<size_t>(grid_row) * static_cast<size_t>(grid_cols_) +
+                 static_cast<size_t>(grid_col)];
+  }
+  const double u = -0.5 + static_cast<double>(grid_col) / subpixels_;
+  const double v = -0.5 + static_cast<double>(grid_row) / subpixels_;
+  Result<Eigen::Vector2d> xy = UndistortPixel(camera_.intrinsics, Eigen::Vector2d(u, v));
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  return xy.ok() ? *xy : Eigen::Vector2d(nan, nan);
 }
 
 Result<RenderedTargetImage> PlanarTargetRenderer::Render(const std::vector<PlanarTarget>& targets,
@@ -238,7 +312,7 @@ Result<RenderedTargetImage> PlanarTargetRenderer::Render(const std::vector<Plana
   const int height = camera_.intrinsics.height_px;
   const int n = subpixels_;
   // Sub-pixel image, in fractions of full scale.
-  cv::Mat sub(height * n, width * n, CV_64FC1, cv::Scalar(options.background_level));
+  SubpixelTiles sub(width, height, n, options.background_level);
   RenderedTargetImage out;
 
   for (size_t t = 0; t < targets.size(); ++t) {
@@ -289,76 +363,89 @@ Result<RenderedTargetImage> PlanarTargetRenderer::Render(const std::vector<Plana
       }
     }
     if (j0 > j1 || i0 > i1) continue;
-
-    // Texture coordinates (texel units) of the grid corners in the box.
-    const int gc0 = j0 * n, gc1 = (j1 + 1) * n;  // inclusive grid column range
-    const int gr0 = i0 * n, gr1 = (i1 + 1) * n;
-    const int gw = gc1 - gc0 + 1;
-    const int gh = gr1 - gr0 + 1;
-    std::vector<double> tx(static_cast<size_t>(gw) * static_cast<size_t>(gh));
-    std::vector<double> ty(tx.size());
-    const double nan = std::numeric_limits<double>::quiet_NaN();
-    for (int gi = 0; gi < gh; ++gi) {
-      for (int gj = 0; gj < gw; ++gj) {
-        const Eigen::Vector2d& xy =
-            rays_[static_cast<size_t>(gr0 + gi) * static_cast<size_t>(grid_cols_) +
-                  static_cast<size_t>(gc0 + gj)];
-        const size_t k = static_cast<size_t>(gi) * static_cast<size_t>(gw) + static_cast<size_t>(gj);
-        const Eigen::Vector3d d = R * Eigen::Vector3d(xy.x(), xy.y(), 1.0);
-        const double lambda = -o.z() / d.z();
-        if (!(lambda > 0.0) || !std::isfinite(lambda)) {
-          tx[k] = ty[k] = nan;
-          continue;
-        }
-        tx[k] = (o.x() + lambda * d.x()) * inv_texel;
-        ty[k] = (o.y() + lambda * d.y()) * inv_texel;
-      }
+    // A target wholly behind the camera (its corners are, and depth is affine
+    // over the plane) covers no pixel: skip the whole-image box.
+    bool behind = true;
+    for (const Eigen::Vector2d& c : {Eigen::Vector2d(0.0, 0.0), Eigen::Vector2d(target.Width(), 0.0),
+                                     Eigen::Vector2d(target.Width(), target.Height()),
+                                     Eigen::Vector2d(0.0, target.Height())}) {
+      const Eigen::Vector3d in_cam =
+          camera_.cam_from_scene * (target.scene_from_target * Eigen::Vector3d(c.x(), c.y(), 0.0));
+      behind = behind && in_cam.z() <= 0.0;
     }
-
-    // Coverage of every sub-pixel quad.
-    const int tcols = texture.cols, trows = texture.rows;
-    for (int gi = 0; gi + 1 < gh; ++gi) {
-      double* row = sub.ptr<double>(gr0 + gi);
-      for (int gj = 0; gj + 1 < gw; ++gj) {
-        const size_t k00 = static_cast<size_t>(gi) * static_cast<size_t>(gw) + static_cast<size_t>(gj);
-        const size_t k01 = k00 + 1;
-        const size_t k10 = k00 + static_cast<size_t>(gw);
-        const size_t k11 = k10 + 1;
-        // Quad in order around the sub-pixel.
-        const double qx[4] = {tx[k00], tx[k01], tx[k11], tx[k10]};
-        const double qy[4] = {ty[k00], ty[k01], ty[k11], ty[k10]};
-        if (!(std::isfinite(qx[0]) && std::isfinite(qx[1]) && std::isfinite(qx[2]) &&
-              std::isfinite(qx[3]))) {
-          continue;  // (part of) the sub-pixel sees no point of the plane
-        }
-        const double xmin = std::min(std::min(qx[0], qx[1]), std::min(qx[2], qx[3]));
-        const double xmax = std::max(std::max(qx[0], qx[1]), std::max(qx[2], qx[3]));
-        const double ymin = std::min(std::min(qy[0], qy[1]), std::min(qy[2], qy[3]));
-        const double ymax = std::max(std::max(qy[0], qy[1]), std::max(qy[2], qy[3]));
-        if (xmax <= 0.0 || ymax <= 0.0 || xmin >= tcols || ymin >= trows) continue;  // off target
-        const int c0 = static_cast<int>(std::floor(xmin));
-        const int c1 = static_cast<int>(std::floor(xmax));
-        const int r0 = static_cast<int>(std::floor(ymin));
-        const int r1 = static_cast<int>(std::floor(ymax));
-        double& value = row[gc0 + gj];
-        const double level_of = options.black_level;
-        const double level_span = options.white_level - options.black_level;
-        if (c0 == c1 && r0 == r1) {  // inside one texel (inside the texture: tested above)
-          value = level_of + level_span * texture.at<double>(r0, c0);
-          continue;
-        }
-        const double area = PolygonArea(qx, qy, 4);
-        if (area == 0.0) continue;
-        double covered = 0.0, weighted = 0.0;
-        for (int r = std::max(r0, 0); r <= std::min(r1, trows - 1); ++r) {
-          for (int c = std::max(c0, 0); c <= std::min(c1, tcols - 1); ++c) {
-            const double a = ClippedArea(qx, qy, c, c + 1.0, r, r + 1.0);
-            covered += a;
-            weighted += a * (level_of + level_span * texture.at<double>(r, c));
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    if (!behind) {
+      const int gc0 = j0 * n, gc1 = (j1 + 1) * n;  // inclusive grid column range
+      const int gw = gc1 - gc0 + 1;
+      // The box in bands of kBandRows pixel rows, so that the texture
+      // coordinates held at once stay small whatever the box's size.
+      constexpr int kBandRows = 64;
+      for (int band = i0; band <= i1; band += kBandRows) {
+        // Texture coordinates (texel units) of the grid corners in the band.
+        const int gr0 = band * n, gr1 = (std::min(i1, band + kBandRows - 1) + 1) * n;
+        const int gh = gr1 - gr0 + 1;
+        std::vector<double> tx(static_cast<size_t>(gw) * static_cast<size_t>(gh));
+        std::vector<double> ty(tx.size());
+        for (int gi = 0; gi < gh; ++gi) {
+          for (int gj = 0; gj < gw; ++gj) {
+            const Eigen::Vector2d xy = RayAt(gr0 + gi, gc0 + gj);
+            const size_t k = static_cast<size_t>(gi) * static_cast<size_t>(gw) + static_cast<size_t>(gj);
+            const Eigen::Vector3d d = R * Eigen::Vector3d(xy.x(), xy.y(), 1.0);
+            const double lambda = -o.z() / d.z();
+            if (!(lambda > 0.0) || !std::isfinite(lambda)) {
+              tx[k] = ty[k] = nan;
+              continue;
+            }
+            tx[k] = (o.x() + lambda * d.x()) * inv_texel;
+            ty[k] = (o.y() + lambda * d.y()) * inv_texel;
           }
         }
-        const double f = covered / area;  // fraction of the sub-pixel on the target
-        value = value * (1.0 - f) + weighted / area;
+
+        // Coverage of every sub-pixel quad.
+        const int tcols = texture.cols, trows = texture.rows;
+        for (int gi = 0; gi + 1 < gh; ++gi) {
+          for (int gj = 0; gj + 1 < gw; ++gj) {
+            const size_t k00 = static_cast<size_t>(gi) * static_cast<size_t>(gw) + static_cast<size_t>(gj);
+            const size_t k01 = k00 + 1;
+            const size_t k10 = k00 + static_cast<size_t>(gw);
+            const size_t k11 = k10 + 1;
+            // Quad in order around the sub-pixel.
+            const double qx[4] = {tx[k00], tx[k01], tx[k11], tx[k10]};
+            const double qy[4] = {ty[k00], ty[k01], ty[k11], ty[k10]};
+            if (!(std::isfinite(qx[0]) && std::isfinite(qx[1]) && std::isfinite(qx[2]) &&
+                  std::isfinite(qx[3]))) {
+              continue;  // (part of) the sub-pixel sees no point of the plane
+            }
+            const double xmin = std::min(std::min(qx[0], qx[1]), std::min(qx[2], qx[3]));
+            const double xmax = std::max(std::max(qx[0], qx[1]), std::max(qx[2], qx[3]));
+            const double ymin = std::min(std::min(qy[0], qy[1]), std::min(qy[2], qy[3]));
+            const double ymax = std::max(std::max(qy[0], qy[1]), std::max(qy[2], qy[3]));
+            if (xmax <= 0.0 || ymax <= 0.0 || xmin >= tcols || ymin >= trows) continue;  // off target
+            const int c0 = static_cast<int>(std::floor(xmin));
+            const int c1 = static_cast<int>(std::floor(xmax));
+            const int r0 = static_cast<int>(std::floor(ymin));
+            const int r1 = static_cast<int>(std::floor(ymax));
+            double& value = sub.At(gr0 + gi, gc0 + gj);
+            const double level_of = options.black_level;
+            const double level_span = options.white_level - options.black_level;
+            if (c0 == c1 && r0 == r1) {  // inside one texel (inside the texture: tested above)
+              value = level_of + level_span * texture.at<double>(r0, c0);
+              continue;
+            }
+            const double area = PolygonArea(qx, qy, 4);
+            if (area == 0.0) continue;
+            double covered = 0.0, weighted = 0.0;
+            for (int r = std::max(r0, 0); r <= std::min(r1, trows - 1); ++r) {
+              for (int c = std::max(c0, 0); c <= std::min(c1, tcols - 1); ++c) {
+                const double a = ClippedArea(qx, qy, c, c + 1.0, r, r + 1.0);
+                covered += a;
+                weighted += a * (level_of + level_span * texture.at<double>(r, c));
+              }
+            }
+            const double f = covered / area;  // fraction of the sub-pixel on the target
+            value = value * (1.0 - f) + weighted / area;
+          }
+        }
       }
     }
 
@@ -383,17 +470,13 @@ Result<RenderedTargetImage> PlanarTargetRenderer::Render(const std::vector<Plana
   }
 
   // Pixel = mean of its sub-pixels.
-  cv::Mat image;
-  if (n == 1) {
-    image = sub;
-  } else {
-    cv::resize(sub, image, cv::Size(width, height), 0.0, 0.0, cv::INTER_AREA);
-  }
+  cv::Mat image = sub.Pixels();
   if (options.blur_sigma_px > 0.0) {
     const int radius = static_cast<int>(std::ceil(4.0 * options.blur_sigma_px));
     cv::GaussianBlur(image, image, cv::Size(2 * radius + 1, 2 * radius + 1), options.blur_sigma_px,
                      options.blur_sigma_px, cv::BORDER_REFLECT);
   }
+  if (options.keep_levels) image.convertTo(out.levels, CV_32FC1);
   if (options.noise_sigma > 0.0) {
     std::mt19937_64 rng(SplitMix64(options.seed).Next());
     NormalGenerator normal;

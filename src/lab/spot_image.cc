@@ -220,6 +220,20 @@ Status SpotImageOptions::Validate() const {
     return bad("background_gradient_v_dn_per_px", background_gradient_v_dn_per_px,
                "must be finite");
   }
+  if (!background_image_dn.empty()) {
+    if (background_image_dn.type() != CV_32FC1 || background_image_dn.cols != width_px ||
+        background_image_dn.rows != height_px) {
+      return Status::InvalidArgument(
+          "SpotImageOptions.background_image_dn: " + std::to_string(background_image_dn.cols) +
+          " x " + std::to_string(background_image_dn.rows) + " " +
+          (background_image_dn.type() == CV_32FC1 ? "CV_32FC1" : "not CV_32FC1") +
+          ": must be CV_32FC1 of width_px x height_px (" + std::to_string(width_px) + " x " +
+          std::to_string(height_px) + ")");
+    }
+    if (!cv::checkRange(background_image_dn)) {
+      return Status::InvalidArgument("SpotImageOptions.background_image_dn: not finite");
+    }
+  }
   if (!(speckle_contrast >= 0.0 && speckle_contrast <= 1.0)) {
     return bad("speckle_contrast", speckle_contrast, "must be in [0, 1]");
   }
@@ -338,9 +352,12 @@ Result<SpotImage> RenderSpotImage(const std::vector<SpotToRender>& spots,
     uint8_t* sat = out.saturated_mask.ptr<uint8_t>(i);
     float* clean = options.keep_clean ? out.clean_dn.ptr<float>(i) : nullptr;
     const double bg_row = options.background_dn + options.background_gradient_v_dn_per_px * (i - cv_);
+    const float* bg_image =
+        options.background_image_dn.empty() ? nullptr : options.background_image_dn.ptr<float>(i);
     for (int j = 0; j < W; ++j) {
-      const double bg =
-          std::max(0.0, bg_row + options.background_gradient_u_dn_per_px * (j - cu));
+      const double bg = std::max(
+          0.0, bg_image != nullptr ? static_cast<double>(bg_image[j])
+                                   : bg_row + options.background_gradient_u_dn_per_px * (j - cu));
       const double expected = bg + l[j];
       if (clean != nullptr) clean[j] = static_cast<float>(expected);
       double value = expected;

@@ -737,6 +737,10 @@ Result<SpotDetectionResult> DetectSpots(const cv::Mat& image, const SpotDetectio
       Window w{};
       for (int pass = 0; pass < 3; ++pass) {
         w = MakeWindow(cu, cv_, half, W, H);
+        if (w.x0 > w.x1 || w.y0 > w.y1) {  // the centroid wandered off the image
+          c.ok = false;
+          break;
+        }
         const CentroidResult next = Centroid(img, lbg, w, sigma_bg, options.gain_e_per_dn);
         if (!next.ok) break;
         c = next;

@@ -108,6 +108,9 @@ struct TargetRenderOptions {
   double noise_sigma = 0.0;        // additive Gaussian noise [fraction of full scale], >= 0
   int bit_depth = 8;               // 8 (CV_8UC1) or 16 (CV_16UC1)
   uint64_t seed = 1;               // noise seed (the same seed gives the same image)
+  // Also return `levels`: the image after the PSF, before noise and
+  // quantisation, CV_32F fractions of full scale (4 bytes per pixel).
+  bool keep_levels = false;
 
   // OK, or names the field, its value and the broken constraint.
   Status Validate() const;
@@ -123,18 +126,31 @@ struct RenderedTag {
 
 struct RenderedTargetImage {
   cv::Mat image;                 // CV_8UC1 or CV_16UC1, the camera's size
+  cv::Mat levels;                // CV_32FC1 before noise and quantisation (keep_levels), else empty
   std::vector<RenderedTag> tags; // every tag of every target, in target order
 };
 
 // Renders targets seen by one camera. Create() precomputes the undistorted
 // rays of every sub-pixel corner (it depends on the camera only); Render()
 // can then be called for any targets and options. The map holds
-// (n W + 1)(n H + 1) rays of 16 bytes (50 MB for 1024 x 768 at n = 2).
+// (n W + 1)(n H + 1) rays of 16 bytes (50 MB for 1024 x 768 at n = 2; 1.2 GB
+// for 18 MP): for large images use CreateOnDemand(), which keeps no map and
+// undistorts, at every Render(), only the sub-pixel corners inside each
+// target's bounding box in the image (the same rays, so the same image).
+// Either way Render() keeps sub-pixel values only in tiles of 64 x 64 pixels
+// that a target's bounding box touches, and works through each box in bands
+// of 64 pixel rows, besides one CV_64F image of the camera's size: memory
+// follows the targets' area in the image, not n^2 W H (18 MP, n = 2, ten
+// tags: ~150 MB for the image and its levels).
 class PlanarTargetRenderer {
  public:
   // InvalidArgument for intrinsics that do not validate or
   // subpixels_per_axis outside [1, 8].
   static Result<PlanarTargetRenderer> Create(const Camera& camera, int subpixels_per_axis = 2);
+  // The same without the precomputed map (see above): slower per Render()
+  // when targets cover much of the image, memory independent of n^2 W H.
+  static Result<PlanarTargetRenderer> CreateOnDemand(const Camera& camera,
+                                                     int subpixels_per_axis = 2);
 
   // The image of `targets` and the truth of their tags. Targets are painted
   // in order over the background (a later one covers an earlier one where
@@ -150,7 +166,10 @@ class PlanarTargetRenderer {
   Camera camera_;
   int subpixels_ = 2;
   int grid_cols_ = 0, grid_rows_ = 0;   // n W + 1, n H + 1
-  std::vector<Eigen::Vector2d> rays_;   // normalized (x, y) per grid corner; NaN where undefined
+  // Normalized (x, y) per grid corner, NaN where undefined; empty when
+  // created on demand (RayAt computes them then).
+  std::vector<Eigen::Vector2d> rays_;
+  Eigen::Vector2d RayAt(int grid_row, int grid_col) const;
 };
 
 }  // namespace opl

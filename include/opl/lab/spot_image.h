@@ -41,7 +41,8 @@
 //
 // Background and noise. The image is
 //   DN = clip(round(B(u, v) + sum of spots + noise), 0, full scale)
-// with B = background_dn + gradient_u (u - (W-1)/2) + gradient_v (v - (H-1)/2),
+// with B = background_dn + gradient_u (u - (W-1)/2) + gradient_v (v - (H-1)/2)
+// (or a given background image, SpotImageOptions::background_image_dn),
 // noise = Poisson shot noise of the signal in electrons (signal DN * gain,
 // back to DN / gain) plus Gaussian read noise (read_noise_dn). So a flat field
 // of level L has variance L / gain + read^2 [DN^2] (plus 1/12 of quantisation).
@@ -91,6 +92,12 @@ struct SpotImageOptions {
   double background_dn = 100.0;
   double background_gradient_u_dn_per_px = 0.0;
   double background_gradient_v_dn_per_px = 0.0;
+  // Optional background image [DN]: CV_32FC1, height_px x width_px, finite.
+  // When non-empty it replaces background_dn and the gradients (B(u, v) in
+  // the header is then this image, clipped at 0), e.g. a noise-free
+  // rendering of targets (lab/planar_target_image.h, keep_levels) times full
+  // scale, so that spots are added to it and noise is applied once.
+  cv::Mat background_image_dn;
   // Speckle contrast c in [0, 1] (0: no speckle) and intensity correlation
   // length [px] (> 0; 1-2 px is typical of a laser spot seen by a camera).
   double speckle_contrast = 0.0;

@@ -1,0 +1,65 @@
+// The calibration from photographs: the images of a calibration session ->
+// 3D spots per slice -> the module calibration. The runnable part of
+// `opl_calibrate --images` as a library function (docs/images.md,
+// "Calibration sessions").
+//
+//   Result<Scene> scene = ReadSceneJson("session.json");      // shots with slices
+//   Result<ModuleCalibration> nominal = ExactCalibration(*design);
+//   Result<ImageCalibrationReport> r = CalibrateFromImages(*scene, "images/", *nominal);
+//   FormatModuleCalibrationJson(r->calibration.calibration) ...
+//
+// A session: the module is fixed, a flat screen is placed at several depths
+// (slices); at each depth each grid is photographed by the cameras, one laser
+// on at a time (the shots' `lasers` and `slice`). The walls carry the coded
+// targets and a scale artifact (scene.artifact: two tags whose centres are a
+// calibrated distance apart).
+//
+// Steps: the image front end (pipeline/image_front_end.h) places every image
+// from the tags on the walls (one bundle adjustment over the whole session,
+// so every slice is in one frame) and gives the 3D spots of every exposure
+// group (one laser, one slice); the artifact's two tag centres scale the
+// frame to mm (ComputeArtifactScaling, with their covariances); each group's
+// spots are identified against the nominal patterns (IdentifySessionSlices:
+// a group is a slice of one grid) and every source is calibrated
+// (CalibrateModule).
+//
+// Errors: those of RunImageFrontEnd, IdentifySessionSlices and
+// CalibrateModule; InvalidArgument when the scene has no artifact;
+// NoSolution when an artifact tag was not placed or no spot is identified.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "opl/calibrate/calibrate_module.h"
+#include "opl/core/status.h"
+#include "opl/identify/identify_slices.h"
+#include "opl/lab/scene.h"
+#include "opl/model/module_calibration.h"
+#include "opl/pipeline/image_front_end.h"
+
+namespace opl {
+
+struct ImageCalibrationOptions {
+  FrontEndOptions front_end;
+  CalibrateModuleOptions calibrate;
+  IdentifyOptions identify;
+
+  Status Validate() const;
+};
+
+struct ImageCalibrationReport {
+  FrontEndResult front_end;
+  CalibrationScaling scaling;            // from the artifact's tags
+  SessionIdentification identification;  // slice = exposure group index
+  ModuleCalibrationResult calibration;
+
+  // The front end's report, the identification's, then the scaling.
+  std::string ToText() const;
+};
+
+Result<ImageCalibrationReport> CalibrateFromImages(
+    const Scene& scene, const std::string& images_dir, const ModuleCalibration& nominal,
+    const ImageCalibrationOptions& options = ImageCalibrationOptions());
+
+}  // namespace opl

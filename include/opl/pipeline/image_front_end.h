@@ -1,0 +1,132 @@
+// The image front end: from the photographs of a scene to 3D laser spots and
+// tag positions in the scene frame, with no manual step (docs/images.md).
+//
+//   Result<Scene> scene = ReadSceneJson("scene.json");
+//   Result<FrontEndResult> fe = RunImageFrontEnd(*scene, "images/", FrontEndOptions());
+//   // fe->spots: 3D points (unscaled scene units) with covariances, to be
+//   // identified and located (pipeline/measure_images.h)
+//
+// The chain, per scene (lab/scene.h describes the cameras, the tags and the
+// shots; the images are the shots' files in `images_dir`):
+//  1. Every image is read (8/16-bit grey or colour PNG/TIFF/JPEG; colour is
+//     converted to grey) and checked against its camera's calibrated size.
+//  2. Detection, per image, in parallel: coded targets (DetectTags,
+//     vision/tag_detection.h) and laser spots (DetectSpots, vision/
+//     spot_detection.h). Spots inside a detected tag's quad are dropped (its
+//     white cells are not lasers).
+//  3. Start poses of every image and tag from the tags (PosesFromTags,
+//     vision/tag_poses.h; the scale is that of the nominal tag size).
+//  4. Bundle adjustment of the tag corners (cameras' intrinsics held, one
+//     pose per image), Huber loss: tag observations that stay beyond
+//     `max_tag_residual_px` are dropped and the adjustment repeated.
+//  5. Spots matched across the images of each exposure group (the shots with
+//     the same lasers on and the same slice: taken at the same time, or at
+//     least of the same spots), by epipolar geometry and a third view
+//     (MatchSpots, vision/spot_matching.h).
+//  6. One bundle adjustment of tags and spots together, in the datum of the
+//     scene frame (the first corners of the frame's three tags), with
+//     first-order covariances of every point (Schur complement).
+//  7. The scene frame of the tag centres (scene.frame: origin, axis, plane
+//     tag; when absent, the three placed tags spanning the largest triangle)
+//     (SceneFromThreePoints, vision/scene_frame.h); every point, covariance
+//     and camera moved into it. The unit is still that of the nominal tag
+//     size: the scale comes from the laser module or the artifact.
+//
+// Errors (Status, never an abort): InvalidArgument for an invalid scene or
+// options, an image whose size is not its camera's ("cam1_A.png: image is
+// 1280 x 720 but camera 'cam1' is calibrated for 1024 x 768"); IoError for a
+// missing or unreadable image (names the file); NoSolution when no tag is
+// found in any image, fewer than two images can be placed, a frame tag is not
+// found, or the bundle adjustment fails. What could not be used (an image
+// that could not be placed, a tag seen once) is reported per image, not an
+// error.
+#pragma once
+
+#include <functional>
+#include <map>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "opl/core/status.h"
+#include "opl/lab/scene.h"
+#include "opl/vision/bundle_adjustment.h"
+#include "opl/vision/camera_model.h"
+#include "opl/vision/spot_detection.h"
+#include "opl/vision/spot_matching.h"
+#include "opl/vision/tag_detection.h"
+
+namespace opl {
+
+struct FrontEndOptions {
+  TagDetectionOptions tags;
+  SpotDetectionOptions spots;
+  SpotMatchOptions matching;
+  // A tag corner observation whose residual after the first bundle
+  // adjustment exceeds this is dropped [px], > 0.
+  double max_tag_residual_px = 2.0;
+  // Floor of a spot's pixel standard deviation [px], >= 0: the detector's
+  // covariance is enlarged to at least this (it underestimates speckle).
+  double min_spot_sigma_px = 0.02;
+  // Worker threads for the detection, >= 0; 0 = every core.
+  int num_threads = 0;
+  // Called after each image is detected and at each later stage:
+  // (stage, done, total); may be empty.
+  std::function<void(const std::string& stage, int done, int total)> progress;
+
+  Status Validate() const;
+};
+
+// What was found in one image.
+struct ImageFindings {
+  std::string file;    // as in the scene's shot
+  std::string camera;  // its camera's name
+  std::vector<int> tag_ids;       // tags detected (increasing id)
+  int spots_detected = 0;         // laser spots detected (outside tags)
+  int spots_matched = 0;          // of those, in a 3D spot
+  bool placed = false;            // its pose was found
+  double tag_rms_px = 0.0;        // RMS tag corner residual after the adjustment
+  double spot_rms_px = 0.0;       // RMS spot residual after the adjustment
+  std::vector<std::string> notes; // why something was not used
+};
+
+// A laser spot in 3D.
+struct FrontEndSpot {
+  Eigen::Vector3d point_in_scene = Eigen::Vector3d::Zero();  // scene frame, unscaled
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();      // first order
+  int group = 0;  // exposure group index (FrontEndResult::groups)
+  // The detections it was made of: (image index, index in that image's spots).
+  std::vector<std::pair<int, int>> views;
+};
+
+// Shots with the same lasers on and the same slice.
+struct ExposureGroup {
+  std::vector<std::string> lasers;  // sorted
+  int slice = 0;
+  std::vector<int> images;          // indices into the shots
+};
+
+struct FrontEndResult {
+  std::vector<ImageFindings> images;   // one per shot, scene order
+  std::vector<Camera> cameras;         // one per shot, scene frame (placed ones valid)
+  std::vector<ExposureGroup> groups;
+  std::vector<FrontEndSpot> spots;
+  // Tag centres in the scene frame and their covariances, by id.
+  std::map<int, Eigen::Vector3d> tag_centers;
+  std::map<int, Eigen::Matrix3d> tag_center_covariances;
+  std::array<int, 3> frame_tags = {-1, -1, -1};  // origin, axis, plane
+  double rms_reprojection_px = 0.0;  // final adjustment, every observation
+  double variance_factor = 0.0;      // final adjustment
+  std::string bundle_report;         // BundleResult::Report() of the final adjustment
+  std::vector<std::string> warnings;
+
+  // Per image one line (file, camera, tags, spots detected/matched, RMS),
+  // then the groups, the adjustment and the warnings.
+  std::string ToText() const;
+};
+
+Result<FrontEndResult> RunImageFrontEnd(const Scene& scene, const std::string& images_dir,
+                                        const FrontEndOptions& options = FrontEndOptions());
+
+}  // namespace opl

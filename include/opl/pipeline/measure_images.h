@@ -1,0 +1,76 @@
+// The measurement from photographs: images -> 3D spots -> scale factor.
+// The runnable part of `opl_measure --images` as a library function.
+//
+//   Result<Scene> scene = ReadSceneJson("scene.json");
+//   Result<ModuleCalibration> cal = ReadModuleCalibrationJson("cal.json");
+//   Result<ImageMeasureReport> r = MeasureScaleFromImages(*scene, "images/", *cal);
+//   std::cout << r->ToText();   // per image, the adjustment, then s +- u(s)
+//
+// Steps: the image front end (pipeline/image_front_end.h) gives the 3D spots
+// of every exposure group with their covariances, in the scene frame of the
+// frame tags, unscaled. Each exposure group is identified on its own
+// (IdentifySpots, identify/identify_spots.h): two grids shot separately are
+// separate point sets, even where they interleave in space. The shots'
+// laser metadata says which grid a spot can belong to: with one laser on,
+// its spots carry that source (identified against its pattern only, so
+// sources with the same nominal pattern cannot be confused); with several
+// lasers on, any source. A spot identified as a source that was off in its
+// exposure group, or a (source, beam) already given by another group, is
+// reported and not used. The assigned spots then go to MeasureScale
+// (pipeline/measure.h): every source located, the scale factor computed
+// from the calibrated separations.
+//
+// Units: the scene's unscaled unit is that of the nominal tag size (about
+// mm); s converts it to mm exactly.
+//
+// Errors: those of RunImageFrontEnd, IdentifySpots (prefixed by the group)
+// and MeasureScale; NoSolution when no spot of any group is identified.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "opl/core/status.h"
+#include "opl/lab/scene.h"
+#include "opl/model/module_calibration.h"
+#include "opl/model/spot.h"
+#include "opl/pipeline/image_front_end.h"
+#include "opl/pipeline/measure.h"
+
+namespace opl {
+
+struct ImageMeasureOptions {
+  FrontEndOptions front_end;
+  MeasureOptions measure;
+
+  Status Validate() const;
+};
+
+struct ImageMeasureReport {
+  FrontEndResult front_end;
+  // The 3D spots, front-end order, with the source and beam they were
+  // identified as (empty / 0 when not); `where` says "spot K (group G, N
+  // views)". The assigned ones were given to MeasureScale.
+  std::vector<Spot> spots;
+  // Per exposure group, its identification (empty for a group without spots).
+  std::vector<IdentifyResult> identification;
+  MeasureReport measure;
+  // Spots not used: identified as a source that was off in their exposure
+  // group, or a (source, beam) another group already gave.
+  std::vector<std::string> metadata_conflicts;
+
+  // The front end's report, each group's identification, the measurement,
+  // then the conflicts.
+  std::string ToText() const;
+  // {"format": "opl.image_measure_report", "version": 1, "images": [...],
+  //  "exposure_groups": [...], "frame_tags": [...], "rms_reprojection_px",
+//  "variance_factor", "warnings",
+  //  "measure": <the measure report JSON>, "metadata_conflicts": [...]}.
+  std::string ToJson() const;
+};
+
+Result<ImageMeasureReport> MeasureScaleFromImages(
+    const Scene& scene, const std::string& images_dir, const ModuleCalibration& calibration,
+    const ImageMeasureOptions& options = ImageMeasureOptions());
+
+}  // namespace opl

@@ -1,0 +1,404 @@
+#include "opl/io/scene_json.h"
+
+#include <cmath>
+#include <filesystem>
+#include <map>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "io/json_reader.h"
+#include "io/module_design_json_internal.h"
+#include "opl/core/format.h"
+#include "opl/io/atomic_file.h"
+#include "opl/io/module_design_json.h"
+
+namespace opl {
+namespace {
+
+using json = nlohmann::json;
+
+constexpr int kVersion = 1;
+
+class SceneReader : public json_internal::JsonReader {
+ public:
+  SceneReader(std::string name, std::string base_dir)
+      : JsonReader(std::move(name)), base_dir_(std::move(base_dir)) {}
+
+  Result<Scene> Parse(const std::string& text) {
+    Result<json> root = ParseText(text);
+    if (!root.ok()) return root.status();
+    Scene scene;
+    OPL_RETURN_IF_ERROR(ParseRoot(*root, &scene));
+    if (Status s = scene.Validate(); !s.ok()) return Status::ParseError(name() + ": " + s.message());
+    return scene;
+  }
+
+ private:
+  Status ParseRoot(const json& root, Scene* scene) {
+    if (!root.is_object()) {
+      return Error("", "expected a JSON object at the top level, got " + Describe(root));
+    }
+    OPL_RETURN_IF_ERROR(CheckFormatAndVersion(root, "opl.scene", kVersion));
+    OPL_RETURN_IF_ERROR(CheckKeys(root, "",
+                                  {"format", "version", "description", "cameras", "tags", "frame",
+                                   "artifact", "module", "spots", "image", "seed", "shots"}));
+    if (const json* d = Find(root, "description")) {
+      std::string ignored;
+      OPL_RETURN_IF_ERROR(String(*d, "description", &ignored));
+    }
+    const json* v = nullptr;
+    OPL_RETURN_IF_ERROR(Require(root, "", "cameras", &v));
+    OPL_RETURN_IF_ERROR(CheckArray(*v, "cameras"));
+    for (size_t k = 0; k < v->size(); ++k) {
+      SceneCamera camera;
+      OPL_RETURN_IF_ERROR(ParseCamera((*v)[k], Index("cameras", k), &camera));
+      scene->cameras.push_back(std::move(camera));
+    }
+    OPL_RETURN_IF_ERROR(Require(root, "", "tags", &v));
+    OPL_RETURN_IF_ERROR(ParseTags(*v, "tags", &scene->tags));
+    if (const json* f = Find(root, "frame")) {
+      SceneFrameTags frame;
+      OPL_RETURN_IF_ERROR(CheckObject(*f, "frame"));
+      OPL_RETURN_IF_ERROR(CheckKeys(*f, "frame", {"origin_tag", "axis_tag", "plane_tag"}));
+      OPL_RETURN_IF_ERROR(RequiredInteger(*f, "frame", "origin_tag", &frame.origin_tag));
+      OPL_RETURN_IF_ERROR(RequiredInteger(*f, "frame", "axis_tag", &frame.axis_tag));
+      OPL_RETURN_IF_ERROR(RequiredInteger(*f, "frame", "plane_tag", &frame.plane_tag));
+      scene->frame = frame;
+    }
+    if (const json* a = Find(root, "artifact")) {
+      SceneArtifact artifact;
+      OPL_RETURN_IF_ERROR(CheckObject(*a, "artifact"));
+      OPL_RETURN_IF_ERROR(
+          CheckKeys(*a, "artifact", {"tag_1", "tag_2", "length_mm", "length_sigma_mm"}));
+      OPL_RETURN_IF_ERROR(RequiredInteger(*a, "artifact", "tag_1", &artifact.tag_1));
+      OPL_RETURN_IF_ERROR(RequiredInteger(*a, "artifact", "tag_2", &artifact.tag_2));
+      OPL_RETURN_IF_ERROR(RequiredNumber(*a, "artifact", "length_mm", &artifact.length_mm));
+      OPL_RETURN_IF_ERROR(OptionalNumber(*a, "artifact", "length_sigma_mm", &artifact.length_sigma_mm));
+      scene->artifact = artifact;
+    }
+    if (const json* m = Find(root, "module")) OPL_RETURN_IF_ERROR(ParseModule(*m, scene));
+    if (const json* s = Find(root, "spots")) {
+      OPL_RETURN_IF_ERROR(CheckObject(*s, "spots"));
+      OPL_RETURN_IF_ERROR(CheckKeys(
+          *s, "spots", {"diameter_mm", "peak_fraction", "speckle_contrast", "speckle_grain_px"}));
+      SpotLook& l = scene->spots;
+      OPL_RETURN_IF_ERROR(OptionalNumber(*s, "spots", "diameter_mm", &l.diameter_mm));
+      OPL_RETURN_IF_ERROR(OptionalNumber(*s, "spots", "peak_fraction", &l.peak_fraction));
+      OPL_RETURN_IF_ERROR(OptionalNumber(*s, "spots", "speckle_contrast", &l.speckle_contrast));
+      OPL_RETURN_IF_ERROR(OptionalNumber(*s, "spots", "speckle_grain_px", &l.speckle_grain_px));
+    }
+    if (const json* i = Find(root, "image")) {
+      OPL_RETURN_IF_ERROR(CheckObject(*i, "image"));
+      OPL_RETURN_IF_ERROR(CheckKeys(*i, "image",
+                                    {"bit_depth", "background_level", "black_level", "white_level",
+                                     "blur_sigma_px", "read_noise", "gain_e_per_dn",
+                                     "subpixels_per_axis"}));
+      ImageLook& l = scene->image;
+      OPL_RETURN_IF_ERROR(OptionalInteger(*i, "image", "bit_depth", &l.bit_depth));
+      OPL_RETURN_IF_ERROR(OptionalNumber(*i, "image", "background_level", &l.background_level));
+      OPL_RETURN_IF_ERROR(OptionalNumber(*i, "image", "black_level", &l.black_level));
+      OPL_RETURN_IF_ERROR(OptionalNumber(*i, "image", "white_level", &l.white_level));
+      OPL_RETURN_IF_ERROR(OptionalNumber(*i, "image", "blur_sigma_px", &l.blur_sigma_px));
+      OPL_RETURN_IF_ERROR(OptionalNumber(*i, "image", "read_noise", &l.read_noise));
+      OPL_RETURN_IF_ERROR(OptionalNumber(*i, "image", "gain_e_per_dn", &l.gain_e_per_dn));
+      OPL_RETURN_IF_ERROR(
+          OptionalInteger(*i, "image", "subpixels_per_axis", &l.subpixels_per_axis));
+    }
+    if (const json* s = Find(root, "seed")) {
+      if (!s->is_number_unsigned()) {
+        return Error("seed", "expected an integer >= 0, got " + Describe(*s));
+      }
+      scene->seed = s->get<uint64_t>();
+    }
+    OPL_RETURN_IF_ERROR(Require(root, "", "shots", &v));
+    OPL_RETURN_IF_ERROR(CheckArray(*v, "shots"));
+    for (size_t k = 0; k < v->size(); ++k) {
+      SceneShot shot;
+      OPL_RETURN_IF_ERROR(ParseShot((*v)[k], Index("shots", k), &shot));
+      scene->shots.push_back(std::move(shot));
+    }
+    return Status::Ok();
+  }
+
+  Status RequiredInteger(const json& obj, const std::string& path, const std::string& key,
+                         int* out) const {
+    const json* v = nullptr;
+    OPL_RETURN_IF_ERROR(Require(obj, path, key, &v));
+    return Integer(*v, Join(path, key), out);
+  }
+
+  Status RequiredString(const json& obj, const std::string& path, const std::string& key,
+                        std::string* out) const {
+    const json* v = nullptr;
+    OPL_RETURN_IF_ERROR(Require(obj, path, key, &v));
+    return String(*v, Join(path, key), out);
+  }
+
+  Status ParseCamera(const json& c, const std::string& path, SceneCamera* camera) const {
+    OPL_RETURN_IF_ERROR(CheckObject(c, path));
+    OPL_RETURN_IF_ERROR(CheckKeys(
+        c, path, {"name", "width_px", "height_px", "intrinsics", "pose", "cam_from_scene"}));
+    OPL_RETURN_IF_ERROR(RequiredString(c, path, "name", &camera->name));
+    CameraIntrinsics& in = camera->intrinsics;
+    OPL_RETURN_IF_ERROR(RequiredInteger(c, path, "width_px", &in.width_px));
+    OPL_RETURN_IF_ERROR(RequiredInteger(c, path, "height_px", &in.height_px));
+    if (in.width_px < 1 || in.width_px > 100000) {
+      return Error(Join(path, "width_px"),
+                   "must be in [1, 100000], got " + std::to_string(in.width_px));
+    }
+    if (in.height_px < 1 || in.height_px > 100000) {
+      return Error(Join(path, "height_px"),
+                   "must be in [1, 100000], got " + std::to_string(in.height_px));
+    }
+    const json* v = nullptr;
+    const std::string ipath = Join(path, "intrinsics");
+    OPL_RETURN_IF_ERROR(Require(c, path, "intrinsics", &v));
+    OPL_RETURN_IF_ERROR(CheckObject(*v, ipath));
+    OPL_RETURN_IF_ERROR(CheckKeys(*v, ipath, {"fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3"}));
+    OPL_RETURN_IF_ERROR(RequiredNumber(*v, ipath, "fx", &in.fx_px));
+    OPL_RETURN_IF_ERROR(RequiredNumber(*v, ipath, "fy", &in.fy_px));
+    OPL_RETURN_IF_ERROR(RequiredNumber(*v, ipath, "cx", &in.cx_px));
+    OPL_RETURN_IF_ERROR(RequiredNumber(*v, ipath, "cy", &in.cy_px));
+    OPL_RETURN_IF_ERROR(OptionalNumber(*v, ipath, "k1", &in.k1));
+    OPL_RETURN_IF_ERROR(OptionalNumber(*v, ipath, "k2", &in.k2));
+    OPL_RETURN_IF_ERROR(OptionalNumber(*v, ipath, "p1", &in.p1));
+    OPL_RETURN_IF_ERROR(OptionalNumber(*v, ipath, "p2", &in.p2));
+    OPL_RETURN_IF_ERROR(OptionalNumber(*v, ipath, "k3", &in.k3));
+    if (!(in.fx_px > 0.0)) {
+      return Error(Join(ipath, "fx"), "must be > 0, got " + FormatNumber(in.fx_px));
+    }
+    if (!(in.fy_px > 0.0)) {
+      return Error(Join(ipath, "fy"), "must be > 0, got " + FormatNumber(in.fy_px));
+    }
+
+    const json* pose = Find(c, "pose");
+    const json* direct = Find(c, "cam_from_scene");
+    if (pose != nullptr && direct != nullptr) {
+      return Error(Join(path, "cam_from_scene"),
+                   "give either \"pose\" or \"cam_from_scene\", not both");
+    }
+    if (pose != nullptr) {
+      const std::string ppath = Join(path, "pose");
+      OPL_RETURN_IF_ERROR(CheckObject(*pose, ppath));
+      OPL_RETURN_IF_ERROR(CheckKeys(*pose, ppath, {"center_mm", "look_at_mm", "roll_deg"}));
+      Eigen::Vector3d center, look_at;
+      double roll_deg = 0.0;
+      OPL_RETURN_IF_ERROR(RequiredVec3(*pose, ppath, "center_mm", &center));
+      OPL_RETURN_IF_ERROR(RequiredVec3(*pose, ppath, "look_at_mm", &look_at));
+      OPL_RETURN_IF_ERROR(OptionalNumber(*pose, ppath, "roll_deg", &roll_deg));
+      Result<Rigid3d> cam_from_scene = CamFromSceneLookingAt(center, look_at, roll_deg * kPi / 180.0);
+      if (!cam_from_scene.ok()) return Error(ppath, cam_from_scene.status().message());
+      camera->cam_from_scene = *cam_from_scene;
+    } else if (direct != nullptr) {
+      const std::string dpath = Join(path, "cam_from_scene");
+      OPL_RETURN_IF_ERROR(CheckObject(*direct, dpath));
+      OPL_RETURN_IF_ERROR(CheckKeys(*direct, dpath, {"quaternion_wxyz", "translation_mm"}));
+      OPL_RETURN_IF_ERROR(Require(*direct, dpath, "quaternion_wxyz", &v));
+      const std::string qpath = Join(dpath, "quaternion_wxyz");
+      if (!v->is_array() || v->size() != 4) {
+        return Error(qpath, "expected an array of 4 numbers, got " + Describe(*v));
+      }
+      double q[4];
+      for (size_t k = 0; k < 4; ++k) OPL_RETURN_IF_ERROR(Number((*v)[k], Index(qpath, k), &q[k]));
+      const double norm = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+      if (std::abs(norm - 1.0) > 1e-6) {
+        return Error(qpath, "must be a unit quaternion (norm " + FormatNumber(norm) + ")");
+      }
+      Eigen::Vector3d t;
+      OPL_RETURN_IF_ERROR(RequiredVec3(*direct, dpath, "translation_mm", &t));
+      camera->cam_from_scene = Rigid3d(Eigen::Quaterniond(q[0], q[1], q[2], q[3]), t);
+    }
+    return Status::Ok();
+  }
+
+  Status ParseTags(const json& t, const std::string& path, SceneTags* tags) const {
+    OPL_RETURN_IF_ERROR(CheckObject(t, path));
+    OPL_RETURN_IF_ERROR(CheckKeys(t, path, {"family", "size_mm", "placements"}));
+    if (const json* f = Find(t, "family")) {
+      OPL_RETURN_IF_ERROR(String(*f, Join(path, "family"), &tags->family));
+      if (tags->family != "tag36h11") {
+        return Error(Join(path, "family"), "only \"tag36h11\" is supported, got " + Describe(*f));
+      }
+    }
+    OPL_RETURN_IF_ERROR(RequiredNumber(t, path, "size_mm", &tags->size_mm));
+    if (!(tags->size_mm > 0.0)) {
+      return Error(Join(path, "size_mm"), "must be > 0, got " + FormatNumber(tags->size_mm));
+    }
+    const json* v = nullptr;
+    const std::string lpath = Join(path, "placements");
+    OPL_RETURN_IF_ERROR(Require(t, path, "placements", &v));
+    OPL_RETURN_IF_ERROR(CheckArray(*v, lpath));
+    std::map<int, size_t> index_of_id;
+    for (size_t k = 0; k < v->size(); ++k) {
+      const std::string ppath = Index(lpath, k);
+      const json& p = (*v)[k];
+      OPL_RETURN_IF_ERROR(CheckObject(p, ppath));
+      OPL_RETURN_IF_ERROR(CheckKeys(p, ppath, {"id", "center_mm", "normal", "up"}));
+      SceneTag tag;
+      OPL_RETURN_IF_ERROR(RequiredInteger(p, ppath, "id", &tag.id));
+      if (tag.id < 0 || tag.id > 586) {
+        return Error(Join(ppath, "id"),
+                     "must be in [0, 586] (tag36h11), got " + std::to_string(tag.id));
+      }
+      const auto [it, inserted] = index_of_id.emplace(tag.id, k);
+      if (!inserted) {
+        return Error(Join(ppath, "id"), "duplicate tag id " + std::to_string(tag.id) + " (also " +
+                                            Index(lpath, it->second) + ")");
+      }
+      const bool posed = Find(p, "center_mm") || Find(p, "normal") || Find(p, "up");
+      if (posed) {
+        Eigen::Vector3d center, normal, up;
+        OPL_RETURN_IF_ERROR(RequiredVec3(p, ppath, "center_mm", &center));
+        OPL_RETURN_IF_ERROR(NonZeroVec3(p, ppath, "normal", &normal));
+        OPL_RETURN_IF_ERROR(NonZeroVec3(p, ppath, "up", &up));
+        const Eigen::Vector3d n = normal.normalized();
+        const Eigen::Vector3d up_in_wall = up - up.dot(n) * n;
+        if (up_in_wall.norm() < 1e-6 * up.norm()) {
+          return Error(Join(ppath, "up"), "must not be parallel to the normal");
+        }
+        Eigen::Matrix3d R;  // columns: the tag's x, y, z in the scene
+        R.col(1) = -up_in_wall.normalized();
+        R.col(2) = -n;
+        R.col(0) = R.col(1).cross(R.col(2));
+        tag.scene_from_tag = Rigid3d(R, center);
+      }
+      tags->tags.push_back(tag);
+    }
+    return Status::Ok();
+  }
+
+  Status ParseModule(const json& m, Scene* scene) const {
+    if (m.is_string()) {
+      const std::string file = m.get<std::string>();
+      if (file.empty()) return Error("module", "must not be empty");
+      std::filesystem::path p(file);
+      if (p.is_relative() && !base_dir_.empty()) p = std::filesystem::path(base_dir_) / p;
+      Result<ModuleDesign> design = ReadModuleDesignJson(p.string());
+      if (!design.ok()) {
+        return Status(design.status().code(),
+                      Error("module", design.status().message()).message());
+      }
+      scene->module = std::move(*design);
+      return Status::Ok();
+    }
+    if (!m.is_object()) {
+      return Error("module", "expected the path of a module design JSON or a design object, got " +
+                                 Describe(m));
+    }
+    Result<ModuleDesign> design = ParseModuleDesignValue(m, name(), "module", base_dir_);
+    if (!design.ok()) return design.status();
+    scene->module = std::move(*design);
+    return Status::Ok();
+  }
+
+  Status ParseShot(const json& s, const std::string& path, SceneShot* shot) const {
+    OPL_RETURN_IF_ERROR(CheckObject(s, path));
+    OPL_RETURN_IF_ERROR(CheckKeys(s, path, {"camera", "file", "lasers", "slice"}));
+    OPL_RETURN_IF_ERROR(RequiredString(s, path, "camera", &shot->camera));
+    OPL_RETURN_IF_ERROR(RequiredString(s, path, "file", &shot->file));
+    if (const json* l = Find(s, "lasers")) {
+      const std::string lpath = Join(path, "lasers");
+      OPL_RETURN_IF_ERROR(CheckArray(*l, lpath));
+      for (size_t k = 0; k < l->size(); ++k) {
+        std::string name;
+        OPL_RETURN_IF_ERROR(String((*l)[k], Index(lpath, k), &name));
+        shot->lasers.push_back(name);
+      }
+    }
+    OPL_RETURN_IF_ERROR(OptionalInteger(s, path, "slice", &shot->slice));
+    return Status::Ok();
+  }
+
+  std::string base_dir_;
+};
+
+}  // namespace
+
+Result<Scene> ParseSceneJson(const std::string& text, const std::string& name_for_messages,
+                             const std::string& base_dir) {
+  try {
+    return SceneReader(name_for_messages, base_dir).Parse(text);
+  } catch (const std::exception& e) {
+    // Defensive: nothing above should throw past the parse, but never let it escape.
+    return Status::ParseError(name_for_messages + ": " + e.what());
+  }
+}
+
+std::string FormatSceneTruthJson(const SceneRenderer& renderer,
+                                 const std::vector<RenderedShot>& shots) {
+  using ojson = nlohmann::ordered_json;  // keys in the order written
+  auto vec = [](const auto& v) {
+    ojson a = ojson::array();
+    for (Eigen::Index k = 0; k < v.size(); ++k) {
+      if (std::isfinite(v[k])) {
+        a.push_back(v[k]);
+      } else {
+        a.push_back(nullptr);
+      }
+    }
+    return a;
+  };
+  ojson root;
+  root["format"] = "opl.scene_truth";
+  root["version"] = 1;
+  root["units"] = "mm";
+  root["pixel_convention"] = "OpenCV: (0, 0) is the centre of the top-left pixel, u right, v down";
+  ojson tags = ojson::array();
+  for (const SceneTagTruth& t : renderer.tags()) {
+    ojson corners = ojson::array();
+    for (const Eigen::Vector3d& c : t.corners_in_scene) corners.push_back(vec(c));
+    tags.push_back({{"id", t.id}, {"center_mm", vec(t.center_in_scene)}, {"corners_mm", corners}});
+  }
+  root["tags"] = tags;
+  ojson spots = ojson::array();
+  for (const SceneSpotTruth& s : renderer.spots()) {
+    spots.push_back({{"source", s.source},
+                     {"beam", s.beam},
+                     {"slice", s.slice},
+                     {"point_mm", vec(s.point_in_scene)},
+                     {"normal", vec(s.normal_in_scene)}});
+  }
+  root["spots"] = spots;
+  ojson shot_list = ojson::array();
+  for (const RenderedShot& r : shots) {
+    const SceneShot& shot = renderer.scene().shots[static_cast<size_t>(r.shot_index)];
+    ojson tag_views = ojson::array();
+    for (const TagView& v : r.tags) {
+      ojson corners = ojson::array();
+      for (const Eigen::Vector2d& c : v.corners_px) corners.push_back(vec(c));
+      tag_views.push_back({{"id", v.id}, {"corners_px", corners}, {"facing", v.facing},
+                           {"in_image", v.in_image}});
+    }
+    ojson spot_views = ojson::array();
+    for (const SpotView& v : r.spots) {
+      const SceneSpotTruth& s = renderer.spots()[static_cast<size_t>(v.spot_index)];
+      ojson view = {{"spot", v.spot_index}, {"source", s.source}, {"beam", s.beam},
+                   {"center_px", vec(v.center_px)}, {"visible", v.visible}};
+      if (v.visible) {
+        view["shape_px2"] = ojson::array({v.shape_covariance_px2(0, 0), v.shape_covariance_px2(0, 1),
+                                         v.shape_covariance_px2(1, 1)});
+        view["saturated_pixels"] = v.saturated_pixels;
+      }
+      spot_views.push_back(view);
+    }
+    shot_list.push_back({{"index", r.shot_index},
+                         {"file", shot.file},
+                         {"camera", shot.camera},
+                         {"lasers", shot.lasers},
+                         {"slice", shot.slice},
+                         {"tags", tag_views},
+                         {"spots", spot_views}});
+  }
+  root["shots"] = shot_list;
+  return root.dump(1) + "\n";
+}
+
+Result<Scene> ReadSceneJson(const std::string& path) {
+  Result<std::string> text = ReadFileToString(path);
+  if (!text.ok()) return text.status();
+  return ParseSceneJson(*text, path, std::filesystem::path(path).parent_path().string());
+}
+
+}  // namespace opl

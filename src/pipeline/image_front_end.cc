@@ -1,0 +1,608 @@
+#include "opl/pipeline/image_front_end.h"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <filesystem>
+#include <mutex>
+#include <set>
+#include <sstream>
+#include <thread>
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "opl/core/format.h"
+#include "opl/vision/scene_frame.h"
+#include "opl/vision/tag_poses.h"
+
+namespace opl {
+namespace {
+
+struct ImageData {
+  std::vector<TagDetection> tags;
+  std::vector<DetectedSpot> spots;
+};
+
+// Reads a shot's image as one grey channel, 8 or 16 bit.
+Result<cv::Mat> ReadShotImage(const std::string& path, const CameraIntrinsics& k,
+                              const std::string& camera_name, const std::string& file) {
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) {
+    return Status::IoError(path + ": no such image");
+  }
+  cv::Mat image = cv::imread(path, cv::IMREAD_ANYDEPTH | cv::IMREAD_ANYCOLOR);
+  if (image.empty()) return Status::IoError(path + ": cannot read the image (not an image file?)");
+  if (image.channels() == 3) {
+    cv::cvtColor(image, image, cv::COLOR_BGR2GRAY);
+  } else if (image.channels() == 4) {
+    cv::cvtColor(image, image, cv::COLOR_BGRA2GRAY);
+  }
+  if (image.depth() != CV_8U && image.depth() != CV_16U) {
+    return Status::InvalidArgument(file + ": image type " + OpenCvTypeName(image.type()) +
+                                   " is not supported (8 or 16 bit)");
+  }
+  if (image.cols != k.width_px || image.rows != k.height_px) {
+    return Status::InvalidArgument(file + ": image is " + std::to_string(image.cols) + " x " +
+                                   std::to_string(image.rows) + " but camera '" + camera_name +
+                                   "' is calibrated for " + std::to_string(k.width_px) + " x " +
+                                   std::to_string(k.height_px));
+  }
+  return image;
+}
+
+// True when the pixel lies inside the quadrilateral of a tag (grown by
+// `margin` of its size about its centre).
+bool InsideTag(const TagDetection& tag, const Eigen::Vector2d& p, double margin) {
+  Eigen::Vector2d center = Eigen::Vector2d::Zero();
+  for (const Eigen::Vector2d& c : tag.corners_px) center += c / 4.0;
+  std::array<Eigen::Vector2d, 4> q;
+  for (size_t i = 0; i < 4; ++i) q[i] = center + (1.0 + margin) * (tag.corners_px[i] - center);
+  int sign = 0;
+  for (size_t i = 0; i < 4; ++i) {
+    const Eigen::Vector2d e = q[(i + 1) % 4] - q[i];
+    const Eigen::Vector2d d = p - q[i];
+    const double cross = e.x() * d.y() - e.y() * d.x();
+    const int s = cross > 0.0 ? 1 : -1;
+    if (sign == 0) sign = s;
+    if (s != sign) return false;
+  }
+  return true;
+}
+
+Eigen::Matrix2d CornerCovariance(const Eigen::Matrix2d& c) {
+  // The edge fit's covariance when it has one, else 0.05 px per coordinate.
+  if (c.allFinite() && c.determinant() > 1e-12) return c;
+  return Eigen::Matrix2d::Identity() * 0.05 * 0.05;
+}
+
+void RunParallel(int count, int threads, const std::function<void(int)>& job) {
+  if (threads <= 1 || count <= 1) {
+    for (int i = 0; i < count; ++i) job(i);
+    return;
+  }
+  std::atomic<int> next{0};
+  std::vector<std::thread> pool;
+  for (int t = 0; t < std::min(threads, count); ++t) {
+    pool.emplace_back([&] {
+      for (int i = next++; i < count; i = next++) job(i);
+    });
+  }
+  for (std::thread& t : pool) t.join();
+}
+
+}  // namespace
+
+Status FrontEndOptions::Validate() const {
+  OPL_RETURN_IF_ERROR(tags.Validate());
+  OPL_RETURN_IF_ERROR(spots.Validate());
+  OPL_RETURN_IF_ERROR(matching.Validate());
+  if (!(std::isfinite(max_tag_residual_px) && max_tag_residual_px > 0.0)) {
+    return Status::InvalidArgument("max_tag_residual_px must be finite and > 0, got " +
+                                   FormatNumber(max_tag_residual_px));
+  }
+  if (!(std::isfinite(min_spot_sigma_px) && min_spot_sigma_px >= 0.0)) {
+    return Status::InvalidArgument("min_spot_sigma_px must be finite and >= 0, got " +
+                                   FormatNumber(min_spot_sigma_px));
+  }
+  if (num_threads < 0) {
+    return Status::InvalidArgument("num_threads must be >= 0, got " +
+                                   std::to_string(num_threads));
+  }
+  return Status::Ok();
+}
+
+std::string FrontEndResult::ToText() const {
+  std::ostringstream out;
+  out << "images:\n";
+  for (const ImageFindings& f : images) {
+    out << "  " << f.file << " (" << f.camera << "): " << f.tag_ids.size() << " tags, "
+        << f.spots_detected << " spots, " << f.spots_matched << " matched";
+    if (f.placed) {
+      out << ", RMS tags " << FormatNumber(f.tag_rms_px, 3) << " px, spots "
+          << FormatNumber(f.spot_rms_px, 3) << " px";
+    } else {
+      out << ", NOT placed";
+    }
+    out << "\n";
+    for (const std::string& n : f.notes) out << "    " << n << "\n";
+  }
+  out << "exposure groups:\n";
+  for (size_t g = 0; g < groups.size(); ++g) {
+    int n = 0;
+    for (const FrontEndSpot& s : spots) n += s.group == static_cast<int>(g) ? 1 : 0;
+    out << "  " << g << ": lasers ";
+    for (size_t i = 0; i < groups[g].lasers.size(); ++i) {
+      out << (i ? "," : "") << groups[g].lasers[i];
+    }
+    if (groups[g].lasers.empty()) out << "(none)";
+    out << ", slice " << groups[g].slice << ", " << groups[g].images.size() << " images, " << n
+        << " 3D spots\n";
+  }
+  out << "scene frame: tags " << frame_tags[0] << " (origin), " << frame_tags[1] << " (axis), "
+      << frame_tags[2] << " (plane); " << tag_centers.size() << " tags placed\n";
+  out << "adjustment: RMS " << FormatNumber(rms_reprojection_px, 3)
+      << " px, variance factor " << FormatNumber(variance_factor, 3) << "\n";
+  for (const std::string& w : warnings) out << "warning: " << w << "\n";
+  return out.str();
+}
+
+Result<FrontEndResult> RunImageFrontEnd(const Scene& scene, const std::string& images_dir,
+                                        const FrontEndOptions& options) {
+  OPL_RETURN_IF_ERROR(scene.Validate());
+  OPL_RETURN_IF_ERROR(options.Validate());
+  const int num_images = static_cast<int>(scene.shots.size());
+  if (num_images < 2) {
+    return Status::InvalidArgument("scene: " + std::to_string(num_images) +
+                                   " shot(s); at least two images are needed");
+  }
+  auto progress = [&](const std::string& stage, int done, int total) {
+    if (options.progress) options.progress(stage, done, total);
+  };
+
+  FrontEndResult result;
+  result.images.resize(static_cast<size_t>(num_images));
+  std::vector<CameraIntrinsics> intrinsics(static_cast<size_t>(num_images));
+  for (int i = 0; i < num_images; ++i) {
+    const SceneShot& shot = scene.shots[static_cast<size_t>(i)];
+    intrinsics[static_cast<size_t>(i)] = scene.FindCamera(shot.camera)->intrinsics;
+    result.images[static_cast<size_t>(i)].file = shot.file;
+    result.images[static_cast<size_t>(i)].camera = shot.camera;
+  }
+
+  // 1-2. Read and detect, in parallel; the first error (in shot order) wins.
+  std::vector<ImageData> data(static_cast<size_t>(num_images));
+  std::vector<Status> errors(static_cast<size_t>(num_images));
+  std::mutex progress_mutex;
+  std::atomic<int> done{0};
+  const int threads = options.num_threads > 0
+                          ? options.num_threads
+                          : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  RunParallel(num_images, threads, [&](int i) {
+    const SceneShot& shot = scene.shots[static_cast<size_t>(i)];
+    const std::string path = (std::filesystem::path(images_dir) / shot.file).string();
+    Status& error = errors[static_cast<size_t>(i)];
+    Result<cv::Mat> image =
+        ReadShotImage(path, intrinsics[static_cast<size_t>(i)], shot.camera, shot.file);
+    if (!image.ok()) {
+      error = image.status();
+      return;
+    }
+    Result<std::vector<TagDetection>> tags = DetectTags(*image, options.tags);
+    if (!tags.ok()) {
+      error = Status(tags.status().code(), shot.file + ": " + tags.status().message());
+      return;
+    }
+    Result<SpotDetectionResult> spots = DetectSpots(*image, options.spots);
+    if (!spots.ok()) {
+      error = Status(spots.status().code(), shot.file + ": " + spots.status().message());
+      return;
+    }
+    ImageData& d = data[static_cast<size_t>(i)];
+    d.tags = std::move(*tags);
+    for (const DetectedSpot& s : spots->spots) {
+      bool in_tag = false;
+      for (const TagDetection& t : d.tags) {
+        in_tag = in_tag || InsideTag(t, Eigen::Vector2d(s.u_px, s.v_px), 0.3);
+      }
+      if (!in_tag) d.spots.push_back(s);
+    }
+    std::lock_guard<std::mutex> lock(progress_mutex);
+    progress("detect", ++done, num_images);
+  });
+  for (const Status& e : errors) OPL_RETURN_IF_ERROR(e);
+  int images_with_tags = 0;
+  for (int i = 0; i < num_images; ++i) {
+    ImageFindings& f = result.images[static_cast<size_t>(i)];
+    for (const TagDetection& t : data[static_cast<size_t>(i)].tags) f.tag_ids.push_back(t.id);
+    f.spots_detected = static_cast<int>(data[static_cast<size_t>(i)].spots.size());
+    if (f.tag_ids.empty()) f.notes.push_back("no tag found");
+    images_with_tags += f.tag_ids.empty() ? 0 : 1;
+  }
+  if (images_with_tags == 0) {
+    return Status::NoSolution("no tag (tag36h11) was found in any of the " +
+                              std::to_string(num_images) + " images");
+  }
+
+  // 3. Start poses.
+  std::vector<std::vector<TagDetection>> tags_per_image;
+  for (const ImageData& d : data) tags_per_image.push_back(d.tags);
+  TagPoseOptions pose_options;
+  pose_options.tag_size = scene.tags.size_mm;
+  Result<TagPoses> poses = PosesFromTags(intrinsics, tags_per_image, pose_options);
+  if (!poses.ok()) return poses.status();
+  progress("poses", 1, 1);
+  for (const std::string& w : poses->warnings) result.warnings.push_back("start poses: " + w);
+
+  // Bundle data: one intrinsics entry per image (held), one pose per placed
+  // image, four corner points per placed tag.
+  BundleData bundle;
+  std::vector<int> camera_of_image(static_cast<size_t>(num_images), -1);
+  for (int i = 0; i < num_images; ++i) {
+    const auto& pose = poses->cam_from_scene[static_cast<size_t>(i)];
+    if (!pose) {
+      result.images[static_cast<size_t>(i)].notes.push_back(
+          "not placed: it sees no tag that other images see");
+      continue;
+    }
+    result.images[static_cast<size_t>(i)].placed = true;
+    camera_of_image[static_cast<size_t>(i)] = static_cast<int>(bundle.cameras.size());
+    bundle.intrinsics.push_back(
+        {scene.shots[static_cast<size_t>(i)].camera, intrinsics[static_cast<size_t>(i)], true});
+    BundleCamera camera;
+    camera.name = scene.shots[static_cast<size_t>(i)].file;
+    camera.intrinsics_index = static_cast<int>(bundle.intrinsics.size()) - 1;
+    camera.cam_from_scene = *pose;
+    bundle.cameras.push_back(camera);
+  }
+  std::map<int, int> first_corner_point;  // tag id -> index of its corner 0
+  const auto corners_in_tag = TagCornersInTag(scene.tags.size_mm);
+  for (const auto& [id, scene_from_tag] : poses->scene_from_tag) {
+    first_corner_point[id] = static_cast<int>(bundle.points.size());
+    for (const Eigen::Vector3d& c : corners_in_tag) {
+      BundlePoint p;
+      p.point_in_scene = scene_from_tag * c;
+      bundle.points.push_back(p);
+    }
+  }
+  struct TagObservationRef {
+    int image;
+    int tag;
+    int corner;
+  };
+  std::vector<TagObservationRef> tag_refs;
+  for (int i = 0; i < num_images; ++i) {
+    const int camera = camera_of_image[static_cast<size_t>(i)];
+    if (camera < 0) continue;
+    for (const TagDetection& t : data[static_cast<size_t>(i)].tags) {
+      const auto found = first_corner_point.find(t.id);
+      if (found == first_corner_point.end()) continue;
+      for (int c = 0; c < 4; ++c) {
+        BundleObservation o;
+        o.camera = camera;
+        o.point = found->second + c;
+        o.pixel_px = t.corners_px[static_cast<size_t>(c)];
+        o.covariance_px2 = CornerCovariance(t.corner_covariance_px2[static_cast<size_t>(c)]);
+        bundle.observations.push_back(o);
+        tag_refs.push_back({i, t.id, c});
+      }
+    }
+  }
+  // Tags seen by fewer than two placed images cannot be adjusted.
+  {
+    std::map<int, std::set<int>> views_of_tag;
+    for (const TagObservationRef& r : tag_refs) views_of_tag[r.tag].insert(r.image);
+    std::vector<BundleObservation> kept;
+    std::vector<TagObservationRef> kept_refs;
+    std::set<int> dropped;
+    for (size_t o = 0; o < tag_refs.size(); ++o) {
+      if (views_of_tag[tag_refs[o].tag].size() >= 2) {
+        kept.push_back(bundle.observations[o]);
+        kept_refs.push_back(tag_refs[o]);
+      } else {
+        dropped.insert(tag_refs[o].tag);
+      }
+    }
+    for (int id : dropped) {
+      result.warnings.push_back("tag " + std::to_string(id) +
+                                ": seen in one placed image only, not used");
+      // Its points stay in the bundle unobserved: make them constant.
+      for (int c = 0; c < 4; ++c) bundle.points[static_cast<size_t>(first_corner_point[id] + c)].constant = true;
+      first_corner_point.erase(id);
+    }
+    bundle.observations = std::move(kept);
+    tag_refs = std::move(kept_refs);
+  }
+
+  // The frame's tags.
+  std::array<int, 3> frame_tags = {-1, -1, -1};
+  if (scene.frame) {
+    frame_tags = {scene.frame->origin_tag, scene.frame->axis_tag, scene.frame->plane_tag};
+    const char* role[3] = {"origin", "axis", "plane"};
+    for (int r = 0; r < 3; ++r) {
+      if (!first_corner_point.count(frame_tags[static_cast<size_t>(r)])) {
+        return Status::NoSolution("frame " + std::string(role[r]) + " tag " +
+                                  std::to_string(frame_tags[static_cast<size_t>(r)]) +
+                                  " was not found in two placed images");
+      }
+    }
+  } else {
+    // The three placed tags spanning the largest triangle.
+    std::vector<std::pair<int, Eigen::Vector3d>> centers;
+    for (const auto& [id, first] : first_corner_point) {
+      centers.emplace_back(id, poses->scene_from_tag.at(id).translation);
+    }
+    double best = 0.0;
+    for (size_t a = 0; a < centers.size(); ++a) {
+      for (size_t b = a + 1; b < centers.size(); ++b) {
+        for (size_t c = b + 1; c < centers.size(); ++c) {
+          const double area = (centers[b].second - centers[a].second)
+                                  .cross(centers[c].second - centers[a].second)
+                                  .norm();
+          if (area > best) {
+            best = area;
+            frame_tags = {centers[a].first, centers[b].first, centers[c].first};
+          }
+        }
+      }
+    }
+    if (best <= 0.0) {
+      return Status::NoSolution("fewer than three tags were found in two placed images: the "
+                                "scene frame cannot be set");
+    }
+  }
+  result.frame_tags = frame_tags;
+  BundleOptions bundle_options;
+  bundle_options.num_threads = threads;
+  bundle_options.gauge = BundleGauge::kFixedByCaller;
+
+  // 4. Tags only, the gauge held by the reference tag's corners (the frame
+  // and the scale of the start poses).
+  const int reference = poses->reference_tag;
+  if (!first_corner_point.count(reference)) {
+    return Status::NoSolution("the reference tag " + std::to_string(reference) +
+                              " is not seen in two placed images");
+  }
+  {
+    BundleData tags_only = bundle;
+    for (int c = 0; c < 4; ++c) {
+      tags_only.points[static_cast<size_t>(first_corner_point[reference] + c)].constant = true;
+    }
+    BundleOptions o = bundle_options;
+    o.loss = BundleLoss::kHuber;
+    o.loss_scale_px = 1.0;
+    Result<BundleResult> adjusted = BundleAdjust(tags_only, o);
+    if (!adjusted.ok()) {
+      return Status::NoSolution("bundle adjustment of the tags: " + adjusted.status().message());
+    }
+    // Drop tag observations that stay far off.
+    std::vector<BundleObservation> kept;
+    for (size_t k = 0; k < adjusted->data.observations.size(); ++k) {
+      const BundleObservation& ob = adjusted->data.observations[k];
+      const Camera cam = adjusted->data.CameraAt(ob.camera);
+      Eigen::Vector2d px;
+      const bool ok = cam.Project(adjusted->data.points[static_cast<size_t>(ob.point)].point_in_scene, &px) &&
+                      (px - ob.pixel_px).norm() <= options.max_tag_residual_px * std::sqrt(2.0);
+      if (ok) {
+        kept.push_back(ob);
+      } else {
+        result.images[static_cast<size_t>(tag_refs[k].image)].notes.push_back(
+            "tag " + std::to_string(tag_refs[k].tag) + " corner " +
+            std::to_string(tag_refs[k].corner) + " dropped (residual > " +
+            FormatNumber(options.max_tag_residual_px) + " px)");
+      }
+    }
+    for (size_t c = 0; c < bundle.cameras.size(); ++c) {
+      bundle.cameras[c].cam_from_scene = adjusted->data.cameras[c].cam_from_scene;
+    }
+    for (size_t p = 0; p < bundle.points.size(); ++p) {
+      bundle.points[p].point_in_scene = adjusted->data.points[p].point_in_scene;
+    }
+    bundle.observations = std::move(kept);
+  }
+  progress("adjust tags", 1, 1);
+  const int num_tag_observations = static_cast<int>(bundle.observations.size());
+
+  // 5. Groups and matching.
+  {
+    std::map<std::pair<std::vector<std::string>, int>, int> group_of_key;
+    for (int i = 0; i < num_images; ++i) {
+      const SceneShot& shot = scene.shots[static_cast<size_t>(i)];
+      std::vector<std::string> lasers = shot.lasers;
+      std::sort(lasers.begin(), lasers.end());
+      const auto key = std::make_pair(lasers, shot.slice);
+      auto found = group_of_key.find(key);
+      if (found == group_of_key.end()) {
+        found = group_of_key.emplace(key, static_cast<int>(result.groups.size())).first;
+        result.groups.push_back({lasers, shot.slice, {}});
+      }
+      result.groups[static_cast<size_t>(found->second)].images.push_back(i);
+    }
+  }
+  struct SpotObservationRef {
+    int image;
+    int spot;
+  };
+  std::vector<SpotObservationRef> spot_refs;
+  std::vector<int> spot_group;
+  for (size_t g = 0; g < result.groups.size(); ++g) {
+    const ExposureGroup& group = result.groups[g];
+    std::vector<Camera> cameras;
+    std::vector<std::vector<SpotInView>> spots_per_view;
+    std::vector<int> image_of_view;
+    for (int i : group.images) {
+      const int camera = camera_of_image[static_cast<size_t>(i)];
+      if (camera < 0) continue;
+      cameras.push_back(bundle.CameraAt(camera));
+      image_of_view.push_back(i);
+      std::vector<SpotInView> views;
+      for (const DetectedSpot& s : data[static_cast<size_t>(i)].spots) {
+        SpotInView v;
+        v.pixel_px = Eigen::Vector2d(s.u_px, s.v_px);
+        Eigen::Matrix2d c = s.covariance_px2;
+        const double floor2 = options.min_spot_sigma_px * options.min_spot_sigma_px;
+        if (!(c.allFinite() && c.determinant() > 0.0)) c = Eigen::Matrix2d::Identity() * floor2;
+        c += Eigen::Matrix2d::Identity() * floor2;
+        v.covariance_px2 = c;
+        views.push_back(v);
+      }
+      spots_per_view.push_back(std::move(views));
+    }
+    if (cameras.size() < 2) {
+      result.warnings.push_back("exposure group " + std::to_string(g) +
+                                ": fewer than two placed images, its spots are not used");
+      continue;
+    }
+    Result<SpotMatchResult> matched = MatchSpots(cameras, spots_per_view, options.matching);
+    if (!matched.ok()) {
+      return Status(matched.status().code(), "matching the spots of exposure group " +
+                                                 std::to_string(g) + ": " +
+                                                 matched.status().message());
+    }
+    for (const SpotTrack& track : matched->tracks) {
+      const int point = static_cast<int>(bundle.points.size());
+      BundlePoint p;
+      p.point_in_scene = track.point.point_in_scene;
+      bundle.points.push_back(p);
+      spot_group.push_back(static_cast<int>(g));
+      for (const SpotRef& ref : track.spots) {
+        const int view = ref.view;
+        const int index = ref.spot;
+        const int image = image_of_view[static_cast<size_t>(view)];
+        BundleObservation o;
+        o.camera = camera_of_image[static_cast<size_t>(image)];
+        o.point = point;
+        o.pixel_px = spots_per_view[static_cast<size_t>(view)][static_cast<size_t>(index)].pixel_px;
+        o.covariance_px2 =
+            spots_per_view[static_cast<size_t>(view)][static_cast<size_t>(index)].covariance_px2;
+        bundle.observations.push_back(o);
+        spot_refs.push_back({image, index});
+        ++result.images[static_cast<size_t>(image)].spots_matched;
+      }
+    }
+    progress("match", static_cast<int>(g) + 1, static_cast<int>(result.groups.size()));
+  }
+
+  // 6. Everything together, in the datum of the frame tags' first corners.
+  // Unobserved (constant) points would break the datum: remove them.
+  {
+    std::vector<int> new_index(bundle.points.size(), -1);
+    std::vector<BundlePoint> points;
+    for (size_t p = 0; p < bundle.points.size(); ++p) {
+      if (bundle.points[p].constant) continue;
+      new_index[p] = static_cast<int>(points.size());
+      points.push_back(bundle.points[p]);
+    }
+    for (BundleObservation& o : bundle.observations) {
+      o.point = new_index[static_cast<size_t>(o.point)];
+    }
+    for (auto& [id, first] : first_corner_point) first = new_index[static_cast<size_t>(first)];
+    bundle.points = std::move(points);
+  }
+  // The spot points follow the tag corners.
+  const int first_spot_point = static_cast<int>(bundle.points.size()) -
+                               static_cast<int>(spot_group.size());
+  BundleOptions final_options = bundle_options;
+  final_options.gauge = BundleGauge::kThreePointDatum;
+  final_options.datum_points = {first_corner_point.at(frame_tags[0]),
+                                first_corner_point.at(frame_tags[1]),
+                                first_corner_point.at(frame_tags[2])};
+  final_options.compute_point_covariances = true;
+  Result<BundleResult> adjusted = BundleAdjust(bundle, final_options);
+  if (!adjusted.ok()) {
+    return Status::NoSolution("bundle adjustment of tags and spots: " +
+                              adjusted.status().message());
+  }
+  progress("adjust all", 1, 1);
+  result.rms_reprojection_px = adjusted->rms_reprojection_px;
+  result.variance_factor = adjusted->variance_factor;
+  result.bundle_report = adjusted->Report();
+
+  // Per-image RMS of tags and spots.
+  {
+    std::vector<double> tag_sum(static_cast<size_t>(num_images), 0.0);
+    std::vector<double> spot_sum(static_cast<size_t>(num_images), 0.0);
+    std::vector<int> tag_n(static_cast<size_t>(num_images), 0);
+    std::vector<int> spot_n(static_cast<size_t>(num_images), 0);
+    std::vector<int> image_of_camera(bundle.cameras.size(), -1);
+    for (int i = 0; i < num_images; ++i) {
+      if (camera_of_image[static_cast<size_t>(i)] >= 0) {
+        image_of_camera[static_cast<size_t>(camera_of_image[static_cast<size_t>(i)])] = i;
+      }
+    }
+    for (size_t k = 0; k < adjusted->data.observations.size(); ++k) {
+      const BundleObservation& ob = adjusted->data.observations[k];
+      Eigen::Vector2d px;
+      if (!adjusted->data.CameraAt(ob.camera).Project(
+              adjusted->data.points[static_cast<size_t>(ob.point)].point_in_scene, &px)) {
+        continue;
+      }
+      const size_t image = static_cast<size_t>(image_of_camera[static_cast<size_t>(ob.camera)]);
+      const double e2 = (px - ob.pixel_px).squaredNorm();
+      if (static_cast<int>(k) < num_tag_observations) {
+        tag_sum[image] += e2;
+        ++tag_n[image];
+      } else {
+        spot_sum[image] += e2;
+        ++spot_n[image];
+      }
+    }
+    for (size_t i = 0; i < static_cast<size_t>(num_images); ++i) {
+      result.images[i].tag_rms_px = tag_n[i] ? std::sqrt(tag_sum[i] / (2.0 * tag_n[i])) : 0.0;
+      result.images[i].spot_rms_px =
+          spot_n[i] ? std::sqrt(spot_sum[i] / (2.0 * spot_n[i])) : 0.0;
+    }
+  }
+
+  // 7. The frame of the tag centres.
+  auto center_of = [&](int id, Eigen::Matrix3d* covariance) {
+    Eigen::Vector3d c = Eigen::Vector3d::Zero();
+    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+    for (int k = 0; k < 4; ++k) {
+      const size_t p = static_cast<size_t>(first_corner_point.at(id) + k);
+      c += adjusted->data.points[p].point_in_scene / 4.0;
+      if (!adjusted->point_covariances.empty()) cov += adjusted->point_covariances[p] / 16.0;
+    }
+    // Corners are correlated; summing their covariances / 16 ignores the
+    // cross terms (a lower bound, good enough for reporting).
+    if (covariance) *covariance = cov;
+    return c;
+  };
+  Result<Rigid3d> frame = SceneFromThreePoints(center_of(frame_tags[0], nullptr),
+                                               center_of(frame_tags[1], nullptr),
+                                               center_of(frame_tags[2], nullptr));
+  if (!frame.ok()) return Status::NoSolution("scene frame: " + frame.status().message());
+  const Eigen::Matrix3d r = frame->RotationMatrix();
+  for (const auto& [id, first] : first_corner_point) {
+    Eigen::Matrix3d cov;
+    const Eigen::Vector3d c = center_of(id, &cov);
+    result.tag_centers[id] = *frame * c;
+    result.tag_center_covariances[id] = r * cov * r.transpose();
+  }
+  for (size_t s = 0; s < spot_group.size(); ++s) {
+    const size_t p = static_cast<size_t>(first_spot_point) + s;
+    FrontEndSpot spot;
+    spot.point_in_scene = *frame * adjusted->data.points[p].point_in_scene;
+    if (!adjusted->point_covariances.empty()) {
+      spot.covariance = r * adjusted->point_covariances[p] * r.transpose();
+    }
+    spot.group = spot_group[s];
+    result.spots.push_back(spot);
+  }
+  for (size_t k = 0; k < spot_refs.size(); ++k) {
+    const BundleObservation& ob = adjusted->data.observations[static_cast<size_t>(num_tag_observations) + k];
+    const size_t s = static_cast<size_t>(ob.point - first_spot_point);
+    result.spots[s].views.emplace_back(spot_refs[k].image, spot_refs[k].spot);
+  }
+  result.cameras.resize(static_cast<size_t>(num_images));
+  for (int i = 0; i < num_images; ++i) {
+    const int camera = camera_of_image[static_cast<size_t>(i)];
+    if (camera < 0) continue;
+    Camera c = adjusted->data.CameraAt(camera);
+    c.cam_from_scene = CamFromNewScene(c.cam_from_scene, *frame, 1.0);
+    result.cameras[static_cast<size_t>(i)] = c;
+  }
+  return result;
+}
+
+}  // namespace opl

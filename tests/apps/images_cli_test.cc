@@ -1,0 +1,96 @@
+// The image front end as a user runs it: opl_simulate images renders the
+// bundled small scene (examples/scene_small.json), opl_measure --images
+// measures it (exit 0, a per-image report, s near the truth's, --spots-out
+// written), and the command-line errors of --images in opl_measure and
+// opl_calibrate (usage: 2; bad input: 3; no solution: 4), with no output
+// file left behind on failure.
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "cli_test_util.h"
+
+namespace opl {
+namespace {
+
+using cli_test::Calibrate;
+using cli_test::Measure;
+using cli_test::RunResult;
+using cli_test::Simulate;
+using ::testing::HasSubstr;
+
+const std::string kExamples = OPL_EXAMPLES_DIR;
+const std::string kScene = kExamples + "/scene_small.json";
+
+TEST(ImagesCli, SimulateThenMeasure) {
+  testing_support::TempDir dir;
+  const std::string shots = dir.File("shots");
+  const std::string calibration = dir.File("cal.json");
+  RunResult r = Simulate("calibration --design " + kExamples + "/scene_small_module.json --out " +
+                         calibration);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  r = Simulate("images --scene " + kScene + " --out " + shots);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const std::string spots_out = dir.File("spots3d.csv");
+  r = Measure("--calibration " + calibration + " --images " + shots + " --scene " + kScene +
+              " --spots-out " + spots_out + " --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json report = nlohmann::json::parse(r.out);
+  EXPECT_EQ(report["format"], "opl.image_measure_report");
+  EXPECT_EQ(report["images"].size(), 8u);
+  for (const auto& image : report["images"]) {
+    EXPECT_TRUE(image["placed"].get<bool>()) << image["file"];
+    EXPECT_GT(image["spots_matched"].get<int>(), 60) << image["file"];
+  }
+  // The scene's unit is the nominal tag size's: within a few 1e-3 of mm.
+  const double s = report["measure"]["scale_factor"].get<double>();
+  EXPECT_NEAR(s, 1.0, 5e-3);
+  std::ifstream in(spots_out);
+  std::string header;
+  std::getline(in, header);
+  EXPECT_EQ(header.rfind("source,beam,x,y,z", 0), 0u) << header;
+}
+
+TEST(ImagesCli, UsageErrors) {
+  RunResult r = Measure("--calibration c.json --spots s.csv --images d --scene " + kScene);
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_THAT(r.err, HasSubstr("give either --spots or --images"));
+  r = Measure("--calibration c.json --images d");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_THAT(r.err, HasSubstr("--images requires --scene"));
+  r = Measure("--calibration c.json --images d --scene " + kScene + " --identified x.csv");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_THAT(r.err, HasSubstr("--identified is for --spots; with --images use --spots-out"));
+  r = Calibrate("--images d --scene " + kScene + " --out m.json");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_THAT(r.err, HasSubstr("--images needs --design"));
+}
+
+TEST(ImagesCli, MissingImagesAndBadSceneAreInputErrors) {
+  testing_support::TempDir dir;
+  const std::string calibration = dir.File("cal.json");
+  ASSERT_EQ(Simulate("calibration --design " + kExamples + "/scene_small_module.json --out " +
+                     calibration)
+                .exit_code,
+            0);
+  const std::string empty = dir.File("empty");
+  std::filesystem::create_directories(empty);
+  const std::string spots_out = dir.File("never.csv");
+  RunResult r = Measure("--calibration " + calibration + " --images " + empty + " --scene " +
+                        kScene + " --spots-out " + spots_out);
+  EXPECT_EQ(r.exit_code, 3);
+  EXPECT_THAT(r.err, HasSubstr(": no such image"));
+  EXPECT_FALSE(std::filesystem::exists(spots_out));
+  const std::string bad_scene = dir.File("bad_scene.json");
+  std::ofstream(bad_scene) << "{\"format\": \"opl.scene\", \"version\": 1}";
+  r = Measure("--calibration " + calibration + " --images " + empty + " --scene " + bad_scene);
+  EXPECT_EQ(r.exit_code, 3);
+  EXPECT_THAT(r.err, HasSubstr("bad_scene.json"));
+}
+
+}  // namespace
+}  // namespace opl

@@ -1,0 +1,176 @@
+// The scene JSON reader: the example scene read back against the numbers in
+// the file (camera centres, tag frames from centre/normal/up in closed form),
+// and each kind of bad input with its exact one-line message.
+#include "opl/io/scene_json.h"
+
+#include <cstdlib>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "io/temp_dir.h"
+
+namespace opl {
+namespace {
+
+std::string ExamplePath(const std::string& name) {
+  const char* root = std::getenv("OPL_SOURCE_DIR");
+  return std::string(root == nullptr ? "." : root) + "/examples/" + name;
+}
+
+const std::string kCamera =
+    R"({"name": "cam0", "width_px": 320, "height_px": 240,
+        "intrinsics": {"fx": 300, "fy": 300, "cx": 159.5, "cy": 119.5, "k1": -0.05},
+        "pose": {"center_mm": [0, 0, 0], "look_at_mm": [1000, 0, 0]}})";
+const std::string kTags =
+    R"({"size_mm": 100, "placements": [
+        {"id": 3, "center_mm": [1000, 200, 100], "normal": [-1, 0, 0], "up": [0, 0, 1]},
+        {"id": 4, "center_mm": [1000, -200, 100], "normal": [-1, 0, 0], "up": [0, 0.2, 1]},
+        {"id": 5}]})";
+const std::string kModule =
+    R"({"sources": [{"name": "A", "pattern": "equal_angle", "beams_per_side": 5,
+                     "full_angle_deg": 10, "origin_mm": [0, 0, 0], "rotation_xyz_rad": [0, 0, 0]}],
+        "surface": {"type": "plane", "point_mm": [1000, 0, 0], "normal": [-1, 0, 0]},
+        "spot_noise_mm": [0, 0, 0]})";
+const std::string kShots = R"([{"camera": "cam0", "file": "a.png", "lasers": ["A"]}])";
+
+// A valid scene whose parts can be replaced.
+std::string Doc(const std::string& cameras = "[" + kCamera + "]", const std::string& tags = kTags,
+                const std::string& shots = kShots, const std::string& extra = "",
+                const std::string& module = kModule) {
+  return R"({"format": "opl.scene", "version": 1, "cameras": )" + cameras + R"(, "tags": )" + tags +
+         R"(, "module": )" + module + R"(, "shots": )" + shots + extra + "}";
+}
+
+std::string Message(const std::string& text) {
+  Result<Scene> r = ParseSceneJson(text, "s.json");
+  return r.ok() ? std::string("OK") : r.status().message();
+}
+
+TEST(SceneJson, ReadsTheSmallExample) {
+  Result<Scene> scene = ReadSceneJson(ExamplePath("scene_small.json"));
+  ASSERT_TRUE(scene.ok()) << scene.status().message();
+  EXPECT_TRUE(scene->ValidateForRendering().ok());
+  ASSERT_EQ(scene->cameras.size(), 4u);
+  EXPECT_EQ(scene->cameras[0].intrinsics.width_px, 1024);
+  EXPECT_EQ(scene->cameras[0].intrinsics.k1, -0.05);
+  const Camera cam{"", scene->cameras[0].intrinsics, *scene->cameras[0].cam_from_scene};
+  EXPECT_LT((cam.CenterInScene() - Eigen::Vector3d(-300, 700, 500)).norm(), 1e-9);
+  // The optical axis passes through look_at (2000, 0, 0).
+  Eigen::Vector3d look = *scene->cameras[0].cam_from_scene * Eigen::Vector3d(2000, 0, 0);
+  EXPECT_NEAR(look.x(), 0.0, 1e-9);
+  EXPECT_NEAR(look.y(), 0.0, 1e-9);
+  ASSERT_EQ(scene->tags.tags.size(), 10u);
+  EXPECT_EQ(scene->tags.size_mm, 140.0);
+  // Tag 0 at (2000, -750, -650) on the wall x = 2000 facing -X, up +Z: tag x =
+  // -Y (right for a viewer looking along +X), y = -Z, z = +X.
+  const Rigid3d& t0 = scene->FindTag(0)->scene_from_tag;
+  EXPECT_LT((t0.translation - Eigen::Vector3d(2000, -750, -650)).norm(), 1e-12);
+  Eigen::Matrix3d expected;
+  expected << 0, 0, 1, -1, 0, 0, 0, -1, 0;
+  EXPECT_LT((t0.RotationMatrix() - expected).norm(), 1e-12);
+  ASSERT_TRUE(scene->frame.has_value());
+  EXPECT_EQ(scene->frame->axis_tag, 1);
+  ASSERT_TRUE(scene->artifact.has_value());
+  EXPECT_EQ(scene->artifact->length_mm, 800.0);
+  ASSERT_TRUE(scene->module.has_value());
+  EXPECT_EQ(scene->module->sources.size(), 2u);
+  EXPECT_EQ(scene->shots.size(), 8u);
+  EXPECT_EQ(scene->shots[5].file, "cam1_B.png");
+  EXPECT_EQ(scene->shots[5].lasers, std::vector<std::string>{"B"});
+  EXPECT_EQ(scene->image.blur_sigma_px, 0.6);
+  EXPECT_EQ(scene->spots.diameter_mm, 16.0);
+}
+
+TEST(SceneJson, ParsesTagFramesAndDirectPoses) {
+  const std::string direct =
+      R"([{"name": "c", "width_px": 10, "height_px": 10,
+           "intrinsics": {"fx": 10, "fy": 10, "cx": 5, "cy": 5},
+           "cam_from_scene": {"quaternion_wxyz": [0, 1, 0, 0], "translation_mm": [1, 2, 3]}}])";
+  Result<Scene> scene = ParseSceneJson(
+      Doc(direct, kTags, R"([{"camera": "c", "file": "a.png"}])"), "s.json");
+  ASSERT_TRUE(scene.ok()) << scene.status().message();
+  const Rigid3d& pose = *scene->cameras[0].cam_from_scene;
+  EXPECT_EQ(pose.rotation.x(), 1.0);  // 180 deg about x
+  EXPECT_EQ(pose.translation, Eigen::Vector3d(1, 2, 3));
+  EXPECT_FALSE(scene->FindCamera("c")->cam_from_scene->rotation.w() != 0.0);
+  // "up" (0, 0.2, 1) is projected on the wall: y = -(0, 0.2, 1) / |.|.
+  const Eigen::Matrix3d R = scene->FindTag(4)->scene_from_tag.RotationMatrix();
+  EXPECT_LT((R.col(1) - -Eigen::Vector3d(0, 0.2, 1).normalized()).norm(), 1e-12);
+  EXPECT_LT((R.col(2) - Eigen::Vector3d(1, 0, 0)).norm(), 1e-12);
+  EXPECT_NEAR(R.determinant(), 1.0, 1e-12);
+  // A placement without a pose: identity.
+  EXPECT_EQ(scene->FindTag(5)->scene_from_tag.translation, Eigen::Vector3d::Zero());
+}
+
+TEST(SceneJson, MessagesNameTheFieldExactly) {
+  EXPECT_EQ(Message(Doc()), "OK");
+  // Missing field.
+  EXPECT_EQ(Message(R"({"format": "opl.scene", "version": 1, "cameras": [], "tags": )" + kTags + "}"),
+            "s.json: shots: missing field");
+  EXPECT_EQ(Message(Doc("[" + std::string(R"({"name": "c", "width_px": 10, "height_px": 10,
+                                               "intrinsics": {"fy": 1, "cx": 0, "cy": 0}})") + "]")),
+            "s.json: cameras[0].intrinsics.fx: missing field");
+  // Unknown field.
+  EXPECT_EQ(Message(Doc("[" + kCamera.substr(0, kCamera.size() - 1) + R"(, "focal": 3})" + "]")),
+            "s.json: cameras[0].focal: unknown field (allowed here: cam_from_scene, height_px, "
+            "intrinsics, name, pose, width_px)");
+  EXPECT_EQ(Message(Doc() .substr(0, Doc().size() - 1) + R"(, "images": 1})"),
+            "s.json: images: unknown field (allowed here: artifact, cameras, description, format, "
+            "frame, image, module, seed, shots, spots, tags, version)");
+  // Wrong type.
+  EXPECT_EQ(Message(Doc("[" + kCamera + "]", R"({"size_mm": "abc", "placements": []})")),
+            "s.json: tags.size_mm: expected a number, got \"abc\"");
+  EXPECT_EQ(Message(Doc("[" + kCamera + "]", kTags, R"([{"camera": "cam0", "file": 7}])")),
+            "s.json: shots[0].file: expected a string, got 7");
+  // A camera unknown in a shot.
+  EXPECT_EQ(Message(Doc("[" + kCamera + "]", kTags,
+                        R"([{"camera": "cam0", "file": "a.png"}, {"camera": "cam9", "file": "b.png"}])")),
+            "s.json: shots[1].camera: no camera named 'cam9'");
+  // Duplicate tag id.
+  EXPECT_EQ(Message(Doc("[" + kCamera + "]", R"({"size_mm": 100, "placements": [{"id": 3}, {"id": 3}]})")),
+            "s.json: tags.placements[1].id: duplicate tag id 3 (also tags.placements[0])");
+  // A frame tag that is not in the scene.
+  EXPECT_EQ(Message(Doc("[" + kCamera + "]", kTags, kShots,
+                        R"(, "frame": {"origin_tag": 3, "axis_tag": 7, "plane_tag": 5})")),
+            "s.json: frame.axis_tag: tag 7 is not among the scene's tags");
+  EXPECT_EQ(Message(Doc("[" + kCamera + "]", kTags, kShots,
+                        R"(, "artifact": {"tag_1": 3, "tag_2": 3, "length_mm": 500})")),
+            "s.json: artifact.tag_2: must differ from tag_1 (3)");
+  // A laser the module does not have.
+  EXPECT_EQ(Message(Doc("[" + kCamera + "]", kTags, R"([{"camera": "cam0", "file": "a.png", "lasers": ["C"]}])")),
+            "s.json: shots[0].lasers[0]: no source named 'C' in the module (it has A)");
+  // Errors inside an inline module name its path in the scene.
+  std::string bad_module = kModule;
+  bad_module.replace(bad_module.find("\"full_angle_deg\": 10"), 20, "\"full_angle_deg\": -1");
+  EXPECT_EQ(Message(Doc("[" + kCamera + "]", kTags, kShots, "", bad_module)),
+            "s.json: module.sources[0].full_angle_deg: must be > 0 and < 180, got -1");
+  // Geometry of a placement.
+  EXPECT_EQ(Message(Doc("[" + kCamera + "]",
+                        R"({"size_mm": 100, "placements": [{"id": 1, "center_mm": [0, 0, 0],
+                            "normal": [1, 0, 0], "up": [2, 0, 0]}]})")),
+            "s.json: tags.placements[0].up: must not be parallel to the normal");
+  EXPECT_EQ(Message(R"({"format": "opl.scene", "version": 2})"),
+            "s.json: version: unsupported version 2 (this reader reads version 1)");
+  EXPECT_EQ(Message("{\"format\": \"opl.scene\",\n \"version\": 1,}"),
+            "s.json:2:15: invalid JSON: syntax error while parsing object key - unexpected '}'; "
+            "expected string literal");
+}
+
+TEST(SceneJson, ModuleFileIsReadRelativeToTheScene) {
+  testing_support::TempDir dir;
+  dir.Write("module.json", R"({"format": "opl.module_design", "version": 1, )" + kModule.substr(1));
+  const std::string scene_path = dir.Write("scene.json", Doc("[" + kCamera + "]", kTags, kShots, "", "\"module.json\""));
+  Result<Scene> scene = ReadSceneJson(scene_path);
+  ASSERT_TRUE(scene.ok()) << scene.status().message();
+  EXPECT_EQ(scene->module->sources[0].beams_per_side, 5);
+  const std::string missing = dir.Write("missing.json", Doc("[" + kCamera + "]", kTags, kShots, "", "\"nope.json\""));
+  Result<Scene> bad = ReadSceneJson(missing);
+  ASSERT_FALSE(bad.ok());
+  EXPECT_EQ(bad.status().code(), StatusCode::kIoError);
+  EXPECT_EQ(bad.status().message(), missing + ": module: " + dir.File("nope.json") +
+                                        ": cannot open: No such file or directory");
+}
+
+}  // namespace
+}  // namespace opl

@@ -1,0 +1,194 @@
+// From rendered photographs to a scale factor, against the truth of the
+// virtual lab (examples/scene_small.json: four 1024 x 768 cameras, tags on
+// the walls, a prototype-like module of two 11 x 11 grids, each grid shot by
+// every camera). The scale of the photogrammetric frame is unknown to the
+// pipeline (it starts from the nominal tag size); the test finds the TRUE
+// scale independently, by a similarity fit (Umeyama) of the measured 3D
+// spots, matched to their true 3D points by the identified (source, beam), and
+// checks s against it. Also the per-image report and the bad-input errors.
+#include "opl/pipeline/measure_images.h"
+
+#include <cstdlib>
+#include <fstream>
+#include <iostream>
+#include <filesystem>
+#include <map>
+#include <string>
+
+#include <Eigen/Geometry>
+#include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
+
+#include "opl/io/scene_json.h"
+#include "opl/lab/render_scene.h"
+#include "opl/sim/module_design.h"
+
+namespace opl {
+namespace {
+
+std::string SourceDir() {
+  const char* dir = std::getenv("OPL_SOURCE_DIR");
+  return dir ? dir : ".";
+}
+
+std::filesystem::path TempDir(const std::string& name) {
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() /
+      ("opl_measure_images_" + name + "_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()));
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  return dir;
+}
+
+// Renders every shot of `scene` into `dir`; returns the renderer (truth).
+SceneRenderer RenderAll(const Scene& scene, const std::filesystem::path& dir) {
+  Result<SceneRenderer> renderer = SceneRenderer::Create(scene);
+  EXPECT_TRUE(renderer.ok()) << renderer.status().ToString();
+  for (size_t i = 0; i < scene.shots.size(); ++i) {
+    Result<RenderedShot> shot = renderer->RenderShot(static_cast<int>(i));
+    EXPECT_TRUE(shot.ok()) << shot.status().ToString();
+    EXPECT_TRUE(cv::imwrite((dir / scene.shots[i].file).string(), shot->image));
+  }
+  return std::move(renderer).value();
+}
+
+Scene SmallScene() {
+  Result<Scene> scene = ReadSceneJson(SourceDir() + "/examples/scene_small.json");
+  EXPECT_TRUE(scene.ok()) << scene.status().ToString();
+  return std::move(scene).value();
+}
+
+// The true scale of the measured frame (mm per scene unit): the similarity
+// that maps the identified spots onto their true points.
+struct TruthFit {
+  double scale = 0.0;
+  double rms_mm = 0.0;  // residual of the fit
+  int points = 0;
+};
+
+TruthFit FitToTruth(const ImageMeasureReport& report, const SceneRenderer& truth) {
+  std::map<std::pair<std::string, int>, Eigen::Vector3d> true_point;
+  for (const SceneSpotTruth& s : truth.spots()) true_point[{s.source, s.beam}] = s.point_in_scene;
+  std::vector<Eigen::Vector3d> measured, truths;
+  for (const Spot& spot : report.spots) {
+    if (!spot.assigned()) continue;
+    const auto found = true_point.find({spot.source, spot.observation.beam_id});
+    if (found == true_point.end()) continue;
+    measured.push_back(spot.observation.point_in_scene);
+    truths.push_back(found->second);
+  }
+  TruthFit fit;
+  fit.points = static_cast<int>(measured.size());
+  if (fit.points < 4) return fit;
+  Eigen::Matrix3Xd src(3, fit.points), dst(3, fit.points);
+  for (int i = 0; i < fit.points; ++i) {
+    src.col(i) = measured[static_cast<size_t>(i)];
+    dst.col(i) = truths[static_cast<size_t>(i)];
+  }
+  const Eigen::Matrix4d t = Eigen::umeyama(src, dst, true);
+  fit.scale = t.topLeftCorner<3, 3>().col(0).norm();
+  double sum = 0.0;
+  for (int i = 0; i < fit.points; ++i) {
+    const Eigen::Vector3d mapped = t.topLeftCorner<3, 3>() * src.col(i) + t.topRightCorner<3, 1>();
+    sum += (mapped - dst.col(i)).squaredNorm();
+  }
+  fit.rms_mm = std::sqrt(sum / fit.points);
+  return fit;
+}
+
+TEST(MeasureScaleFromImages, NoiseFreeRenderGivesTheTrueScale) {
+  Scene scene = SmallScene();
+  // Noise-free: no sensor noise, no speckle, 16 bit (no visible quantisation).
+  scene.image.read_noise = 0.0;
+  scene.image.gain_e_per_dn = 0.0;
+  scene.image.bit_depth = 16;
+  scene.spots.speckle_contrast = 0.0;
+  const std::filesystem::path dir = TempDir("clean");
+  const SceneRenderer truth = RenderAll(scene, dir);
+  Result<ModuleCalibration> calibration = ExactCalibration(*scene.module);
+  ASSERT_TRUE(calibration.ok());
+  ImageMeasureOptions options;
+  options.front_end.num_threads = 2;
+  if (std::getenv("OPL_DEBUG_FRONT_END")) {
+    Result<FrontEndResult> fe = RunImageFrontEnd(scene, dir.string(), options.front_end);
+    ASSERT_TRUE(fe.ok()) << fe.status().ToString();
+    std::cout << fe->ToText() << fe->bundle_report;
+    std::ofstream dump(std::getenv("OPL_DEBUG_FRONT_END"));
+    dump << "group,x,y,z,sx,sy,sz\n";
+    for (const FrontEndSpot& sp : fe->spots) {
+      dump << sp.group << "," << sp.point_in_scene.x() << "," << sp.point_in_scene.y() << ","
+           << sp.point_in_scene.z() << "," << std::sqrt(sp.covariance(0, 0)) << ","
+           << std::sqrt(sp.covariance(1, 1)) << "," << std::sqrt(sp.covariance(2, 2)) << "\n";
+    }
+  }
+  Result<ImageMeasureReport> report =
+      MeasureScaleFromImages(scene, dir.string(), *calibration, options);
+  ASSERT_TRUE(report.ok()) << report.status().ToString();
+  std::cout << report->ToText();
+  for (const ImageFindings& f : report->front_end.images) {
+    EXPECT_TRUE(f.placed) << f.file;
+    EXPECT_GE(f.tag_ids.size(), 3u) << f.file;
+    EXPECT_GT(f.spots_matched, 60) << f.file;
+    EXPECT_LT(f.tag_rms_px, 0.1) << f.file;
+    EXPECT_LT(f.spot_rms_px, 0.1) << f.file;
+  }
+  EXPECT_TRUE(report->metadata_conflicts.empty());
+  const TruthFit fit = FitToTruth(*report, truth);
+  std::cout.precision(10);
+  std::cout << "truth fit: " << fit.points << " spots, scale " << fit.scale << ", rms "
+            << fit.rms_mm << " mm; s = " << report->measure.scale.scale_factor << " +- "
+            << report->measure.scale.u_scale_factor << "\n";
+  EXPECT_GE(fit.points, 230);
+  const double s = report->measure.scale.scale_factor;
+  EXPECT_LT(std::abs(s / fit.scale - 1.0), 2e-5);
+  std::filesystem::remove_all(dir);
+}
+
+TEST(MeasureScaleFromImages, BadInputNamesTheFile) {
+  Scene scene = SmallScene();
+  const std::filesystem::path dir = TempDir("bad");
+  Result<ModuleCalibration> calibration = ExactCalibration(*scene.module);
+  ASSERT_TRUE(calibration.ok());
+  // Missing images.
+  Result<ImageMeasureReport> r = MeasureScaleFromImages(scene, dir.string(), *calibration);
+  EXPECT_EQ(r.status().code(), StatusCode::kIoError);
+  EXPECT_NE(r.status().message().find(scene.shots[0].file + ": no such image"), std::string::npos)
+      << r.status().message();
+  // Images of the wrong size.
+  const CameraIntrinsics& k = scene.cameras[0].intrinsics;
+  for (const SceneShot& shot : scene.shots) {
+    cv::imwrite((dir / shot.file).string(), cv::Mat(k.height_px / 2, k.width_px, CV_8UC1, cv::Scalar(60)));
+  }
+  r = MeasureScaleFromImages(scene, dir.string(), *calibration);
+  EXPECT_EQ(r.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(r.status().message().find("is " + std::to_string(k.width_px) + " x " +
+                                      std::to_string(k.height_px / 2) + " but camera"),
+            std::string::npos)
+      << r.status().message();
+  // Blank images: no tags.
+  for (const SceneShot& shot : scene.shots) {
+    const CameraIntrinsics& kk = scene.FindCamera(shot.camera)->intrinsics;
+    cv::imwrite((dir / shot.file).string(), cv::Mat(kk.height_px, kk.width_px, CV_8UC1, cv::Scalar(60)));
+  }
+  r = MeasureScaleFromImages(scene, dir.string(), *calibration);
+  EXPECT_EQ(r.status().code(), StatusCode::kNoSolution);
+  EXPECT_EQ(r.status().message(), "no tag (tag36h11) was found in any of the " +
+                                      std::to_string(scene.shots.size()) + " images");
+  // Not an image.
+  {
+    std::ofstream(dir / scene.shots[1].file) << "not a png";
+  }
+  r = MeasureScaleFromImages(scene, dir.string(), *calibration);
+  EXPECT_EQ(r.status().code(), StatusCode::kIoError);
+  EXPECT_NE(r.status().message().find(scene.shots[1].file + ": cannot read the image"),
+            std::string::npos)
+      << r.status().message();
+  // Too few shots.
+  scene.shots.resize(1);
+  r = MeasureScaleFromImages(scene, dir.string(), *calibration);
+  EXPECT_EQ(r.status().message(), "scene: 1 shot(s); at least two images are needed");
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace opl

@@ -101,6 +101,10 @@ Status FrontEndOptions::Validate() const {
     return Status::InvalidArgument("max_tag_residual_px must be finite and > 0, got " +
                                    FormatNumber(max_tag_residual_px));
   }
+  if (!(std::isfinite(max_spot_variance_factor) && max_spot_variance_factor > 1.0)) {
+    return Status::InvalidArgument("max_spot_variance_factor must be finite and > 1, got " +
+                                   FormatNumber(max_spot_variance_factor));
+  }
   if (!(std::isfinite(min_spot_sigma_px) && min_spot_sigma_px >= 0.0)) {
     return Status::InvalidArgument("min_spot_sigma_px must be finite and >= 0, got " +
                                    FormatNumber(min_spot_sigma_px));
@@ -142,7 +146,12 @@ std::string FrontEndResult::ToText() const {
   out << "scene frame: tags " << frame_tags[0] << " (origin), " << frame_tags[1] << " (axis), "
       << frame_tags[2] << " (plane); " << tag_centers.size() << " tags placed\n";
   out << "adjustment: RMS " << FormatNumber(rms_reprojection_px, 3)
-      << " px, variance factor " << FormatNumber(variance_factor, 3) << "\n";
+      << " px, variance factor " << FormatNumber(variance_factor, 3) << "; spots' variance factor "
+      << FormatNumber(spot_variance_factor, 3);
+  if (spot_covariance_scale != 1.0) {
+    out << " (spot covariances scaled by " << FormatNumber(spot_covariance_scale, 3) << ")";
+  }
+  out << "\n";
   for (const std::string& w : warnings) out << "warning: " << w << "\n";
   return out.str();
 }
@@ -401,7 +410,24 @@ Result<FrontEndResult> RunImageFrontEnd(const Scene& scene, const std::string& i
     bundle.observations = std::move(kept);
   }
   progress("adjust tags", 1, 1);
+  // Unobserved (constant) tag points would break the datum of the final
+  // adjustment: remove them.
+  {
+    std::vector<int> new_index(bundle.points.size(), -1);
+    std::vector<BundlePoint> points;
+    for (size_t p = 0; p < bundle.points.size(); ++p) {
+      if (bundle.points[p].constant) continue;
+      new_index[p] = static_cast<int>(points.size());
+      points.push_back(bundle.points[p]);
+    }
+    for (BundleObservation& o : bundle.observations) {
+      o.point = new_index[static_cast<size_t>(o.point)];
+    }
+    for (auto& [id, first] : first_corner_point) first = new_index[static_cast<size_t>(first)];
+    bundle.points = std::move(points);
+  }
   const int num_tag_observations = static_cast<int>(bundle.observations.size());
+  const BundleData tag_bundle = bundle;
 
   // 5. Groups and matching.
   {
@@ -425,6 +451,17 @@ Result<FrontEndResult> RunImageFrontEnd(const Scene& scene, const std::string& i
   };
   std::vector<SpotObservationRef> spot_refs;
   std::vector<int> spot_group;
+  int first_spot_point = 0;
+  Result<BundleResult> adjusted = Status::NoSolution("not run");
+  // 5-6 run twice when the spots' residuals show that the detector's
+  // covariances are too small (speckle): the second pass matches and adjusts
+  // with the covariances scaled by the spots' variance factor.
+  double spot_scale = 1.0;
+  for (int pass = 0; pass < 2; ++pass) {
+  bundle = tag_bundle;
+  spot_refs.clear();
+  spot_group.clear();
+  for (ImageFindings& f : result.images) f.spots_matched = 0;
   for (size_t g = 0; g < result.groups.size(); ++g) {
     const ExposureGroup& group = result.groups[g];
     std::vector<Camera> cameras;
@@ -443,7 +480,7 @@ Result<FrontEndResult> RunImageFrontEnd(const Scene& scene, const std::string& i
         const double floor2 = options.min_spot_sigma_px * options.min_spot_sigma_px;
         if (!(c.allFinite() && c.determinant() > 0.0)) c = Eigen::Matrix2d::Identity() * floor2;
         c += Eigen::Matrix2d::Identity() * floor2;
-        v.covariance_px2 = c;
+        v.covariance_px2 = spot_scale * c;
         views.push_back(v);
       }
       spots_per_view.push_back(std::move(views));
@@ -484,35 +521,46 @@ Result<FrontEndResult> RunImageFrontEnd(const Scene& scene, const std::string& i
   }
 
   // 6. Everything together, in the datum of the frame tags' first corners.
-  // Unobserved (constant) points would break the datum: remove them.
-  {
-    std::vector<int> new_index(bundle.points.size(), -1);
-    std::vector<BundlePoint> points;
-    for (size_t p = 0; p < bundle.points.size(); ++p) {
-      if (bundle.points[p].constant) continue;
-      new_index[p] = static_cast<int>(points.size());
-      points.push_back(bundle.points[p]);
-    }
-    for (BundleObservation& o : bundle.observations) {
-      o.point = new_index[static_cast<size_t>(o.point)];
-    }
-    for (auto& [id, first] : first_corner_point) first = new_index[static_cast<size_t>(first)];
-    bundle.points = std::move(points);
-  }
   // The spot points follow the tag corners.
-  const int first_spot_point = static_cast<int>(bundle.points.size()) -
-                               static_cast<int>(spot_group.size());
+  first_spot_point = static_cast<int>(bundle.points.size()) -
+                     static_cast<int>(spot_group.size());
   BundleOptions final_options = bundle_options;
   final_options.gauge = BundleGauge::kThreePointDatum;
   final_options.datum_points = {first_corner_point.at(frame_tags[0]),
                                 first_corner_point.at(frame_tags[1]),
                                 first_corner_point.at(frame_tags[2])};
   final_options.compute_point_covariances = true;
-  Result<BundleResult> adjusted = BundleAdjust(bundle, final_options);
+  adjusted = BundleAdjust(bundle, final_options);
   if (!adjusted.ok()) {
     return Status::NoSolution("bundle adjustment of tags and spots: " +
                               adjusted.status().message());
   }
+  // The spots' variance factor: their chi^2 over their redundancy (2 per
+  // observation - 3 per point; the cameras are held by the tags).
+  double chi2 = 0.0;
+  int spot_observations = 0;
+  for (size_t k = static_cast<size_t>(num_tag_observations);
+       k < adjusted->data.observations.size(); ++k) {
+    const BundleObservation& ob = adjusted->data.observations[k];
+    Eigen::Vector2d px;
+    if (!adjusted->data.CameraAt(ob.camera).Project(
+            adjusted->data.points[static_cast<size_t>(ob.point)].point_in_scene, &px)) {
+      continue;
+    }
+    const Eigen::Vector2d r = px - ob.pixel_px;
+    chi2 += r.dot(ob.covariance_px2.ldlt().solve(r));
+    ++spot_observations;
+  }
+  const int redundancy = 2 * spot_observations - 3 * static_cast<int>(spot_group.size());
+  const double spot_variance_factor = redundancy > 0 ? chi2 / redundancy : 1.0;
+  if (pass == 0) result.spot_variance_factor = spot_variance_factor;
+  if (pass > 0 || !options.rescale_spot_covariances ||
+      !(spot_variance_factor > options.max_spot_variance_factor)) {
+    break;
+  }
+  spot_scale = spot_variance_factor;
+  result.spot_covariance_scale = spot_scale;
+  }  // passes
   progress("adjust all", 1, 1);
   result.rms_reprojection_px = adjusted->rms_reprojection_px;
   result.variance_factor = adjusted->variance_factor;

@@ -25,7 +25,10 @@
 //     (MatchSpots, vision/spot_matching.h).
 //  6. One bundle adjustment of tags and spots together, in the datum of the
 //     scene frame (the first corners of the frame's three tags), with
-//     first-order covariances of every point (Schur complement).
+//     first-order covariances of every point (Schur complement). When the
+//     spots' residuals are larger than their covariances say (speckle: the
+//     detector's covariance is too small), every spot covariance is scaled
+//     by the spots' variance factor and steps 5-6 run once more.
 //  7. The scene frame of the tag centres (scene.frame: origin, axis, plane
 //     tag; when absent, the three placed tags spanning the largest triangle)
 //     (SceneFromThreePoints, vision/scene_frame.h); every point, covariance
@@ -69,6 +72,15 @@ struct FrontEndOptions {
   // Floor of a spot's pixel standard deviation [px], >= 0: the detector's
   // covariance is enlarged to at least this (it underestimates speckle).
   double min_spot_sigma_px = 0.02;
+  // The detector underestimates the spread of speckled spots
+  // (docs/spot_detection.md). When the spots' variance factor after the
+  // adjustment (chi^2 of their residuals over their redundancy) exceeds
+  // max_spot_variance_factor, every spot covariance is multiplied by it and
+  // the matching and the adjustment are run again (step 6 of the header), so
+  // that the matching gates and the 3D covariances (hence u(s)) follow the
+  // observed scatter. > 1.
+  bool rescale_spot_covariances = true;
+  double max_spot_variance_factor = 1.5;
   // Worker threads for the detection, >= 0; 0 = every core.
   int num_threads = 0;
   // Called after each image is detected and at each later stage:
@@ -118,6 +130,10 @@ struct FrontEndResult {
   std::array<int, 3> frame_tags = {-1, -1, -1};  // origin, axis, plane
   double rms_reprojection_px = 0.0;  // final adjustment, every observation
   double variance_factor = 0.0;      // final adjustment
+  // The spots' variance factor after the first adjustment, and the factor
+  // their covariances were multiplied by (1: not rescaled).
+  double spot_variance_factor = 0.0;
+  double spot_covariance_scale = 1.0;
   std::string bundle_report;         // BundleResult::Report() of the final adjustment
   std::vector<std::string> warnings;
 

@@ -320,6 +320,9 @@ Status TagDetectionOptions::Validate() const {
   if (max_hamming < 0 || max_hamming > kTag36h11MaxCorrectionBits) {
     return bad("max_hamming", max_hamming, "must be in [0, 5]");
   }
+  if (!(candidate_max_megapixels >= 0.5 && std::isfinite(candidate_max_megapixels))) {
+    return bad("candidate_max_megapixels", candidate_max_megapixels, "must be finite and >= 0.5");
+  }
   if (subpix_half_window_px < 1 || subpix_half_window_px > 50) {
     return bad("subpix_half_window_px", subpix_half_window_px, "must be in [1, 50]");
   }
@@ -389,10 +392,27 @@ Result<std::vector<TagDetection>> DetectTags(const cv::Mat& image, const TagDete
   params->errorCorrectionRate = static_cast<double>(options.max_hamming) / kTag36h11MaxCorrectionBits;
   std::vector<std::vector<cv::Point2f>> quads;
   std::vector<int> ids;
-  cv::aruco::detectMarkers(gray8, dictionary, quads, ids, params);
+  // Large images: candidates in a reduced copy (the edge fit refines them at
+  // full resolution).
+  int factor = 1;
+  if (options.refinement == TagCornerRefinement::kEdgeFit) {
+    const double megapixels = static_cast<double>(gray8.total()) * 1e-6;
+    while (megapixels / (factor * factor) > options.candidate_max_megapixels) ++factor;
+  }
+  if (factor > 1) {
+    cv::Mat reduced;
+    cv::resize(gray8, reduced, cv::Size(gray8.cols / factor, gray8.rows / factor), 0.0, 0.0,
+               cv::INTER_AREA);
+    cv::aruco::detectMarkers(reduced, dictionary, quads, ids, params);
+    // Pixel centres: reduced (x', y') is full-resolution f x' + (f - 1) / 2.
+    const float f = static_cast<float>(factor), offset = 0.5f * (f - 1.0f);
+    for (auto& quad : quads) {
+      for (cv::Point2f& p : quad) p = cv::Point2f(f * p.x + offset, f * p.y + offset);
+    }
+  } else {
+    cv::aruco::detectMarkers(gray8, dictionary, quads, ids, params);
+  }
 
-  cv::Mat gray64;
-  gray.convertTo(gray64, CV_64F);
   std::vector<TagDetection> detections;
   for (size_t k = 0; k < ids.size(); ++k) {
     if (quads[k].size() != 4) continue;
@@ -416,6 +436,26 @@ Result<std::vector<TagDetection>> DetectTags(const cv::Mat& image, const TagDete
       if ((other_centre - centre).norm() < 0.25 * side) duplicate = true;
     }
     if (duplicate) continue;
+
+    // The pixels around the tag, as doubles (the edge fit and the id check
+    // read nothing farther than the band from the quad); coordinates in the
+    // window are shifted by its origin.
+    const double margin = 2.0 * options.max_edge_band_px + 8.0 + 0.1 * side;
+    double x0 = centre.x(), x1 = centre.x(), y0 = centre.y(), y1 = centre.y();
+    for (const Eigen::Vector2d& c : det.corners_px) {
+      x0 = std::min(x0, c.x()), x1 = std::max(x1, c.x());
+      y0 = std::min(y0, c.y()), y1 = std::max(y1, c.y());
+    }
+    const int wx0 = std::clamp(static_cast<int>(std::floor(x0 - margin)), 0, gray.cols - 1);
+    const int wy0 = std::clamp(static_cast<int>(std::floor(y0 - margin)), 0, gray.rows - 1);
+    const int wx1 = std::clamp(static_cast<int>(std::ceil(x1 + margin)), 0, gray.cols - 1);
+    const int wy1 = std::clamp(static_cast<int>(std::ceil(y1 + margin)), 0, gray.rows - 1);
+    const cv::Rect window(wx0, wy0, wx1 - wx0 + 1, wy1 - wy0 + 1);
+    cv::Mat gray64;
+    gray(window).convertTo(gray64, CV_64F);
+    const Eigen::Vector2d origin(wx0, wy0);
+    for (Eigen::Vector2d& c : det.corners_px) c -= origin;
+    centre -= origin;
 
     if (options.refinement == TagCornerRefinement::kEdgeFit) {
       const double band_px =
@@ -444,6 +484,7 @@ Result<std::vector<TagDetection>> DetectTags(const cv::Mat& image, const TagDete
       det.edge_rms = std::sqrt(rms2);
     }
     det.hamming = Hamming(gray64, det.corners_px, det.id, *dictionary);
+    for (Eigen::Vector2d& c : det.corners_px) c += origin;
     if (det.hamming > options.max_hamming) continue;
     detections.push_back(det);
   }

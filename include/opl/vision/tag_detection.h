@@ -78,6 +78,12 @@ struct TagDetectionOptions {
   // through the refined corners, differ from the code in more bits is
   // dropped), in [0, 5].
   int max_hamming = 2;
+  // Edge fit on a large image: the candidates (aruco's quads) are searched in
+  // a copy reduced by the smallest integer factor f that brings it to at
+  // most this many megapixels (cv::INTER_AREA), then refined by the edge fit
+  // at full resolution. Tags must then be about f times min_tag_side_px.
+  // 6 MP: an 18 MP image is searched at f = 2, about 3x faster. >= 0.5.
+  double candidate_max_megapixels = 6.0;
   // OpenCV's cornerSubPix half window for kOpenCvSubpix [px], >= 1.
   int subpix_half_window_px = 3;
 

@@ -94,6 +94,16 @@ TEST(ImagesCli, MissingImagesAndBadSceneAreInputErrors) {
   r = Measure("--calibration " + calibration + " --images " + empty + " --scene " + bad_scene);
   EXPECT_EQ(r.exit_code, 3);
   EXPECT_THAT(r.err, HasSubstr("bad_scene.json"));
+  // A camera without its calibration.
+  nlohmann::json scene;
+  std::ifstream(kScene) >> scene;
+  scene["module"] = kExamples + "/scene_small_module.json";
+  scene["cameras"][2].erase("intrinsics");
+  const std::string uncalibrated = dir.File("uncalibrated.json");
+  std::ofstream(uncalibrated) << scene.dump();
+  r = Measure("--calibration " + calibration + " --images " + empty + " --scene " + uncalibrated);
+  EXPECT_EQ(r.exit_code, 3);
+  EXPECT_THAT(r.err, HasSubstr("uncalibrated.json: cameras[2].intrinsics: missing field"));
 }
 
 }  // namespace

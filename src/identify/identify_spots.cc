@@ -6,6 +6,7 @@
 #include <limits>
 #include <optional>
 #include <sstream>
+#include <thread>
 #include <tuple>
 
 #include <Eigen/LU>
@@ -369,21 +370,14 @@ struct Seed {
 };
 
 // Seeds: points with two pairs of opposite neighbours (a local lattice cross).
-std::vector<Seed> FindSeeds(const Pool& pool, int k) {
+// Every point's seed depends on the pool only, so the points are split into
+// `threads` contiguous ranges worked in parallel; the seeds are merged in
+// point order, so the result does not depend on the number of threads.
+std::vector<Seed> FindSeeds(const Pool& pool, int k, int threads) {
   const int n = pool.size();
   std::vector<Seed> seeds;
   if (n < 5) return seeds;
   k = std::min(k, n - 1);
-  std::vector<int> nb(k);
-  std::vector<Eigen::Vector3d> nbp(k);  // the neighbours' points, contiguous
-  std::vector<double> nbd(k);           // their distances, ascending
-  struct Axis {
-    int plus, minus;
-    Eigen::Vector3d a;
-    double err;
-    double norm;
-  };
-  std::vector<Axis> axes;
 
   // The k nearest neighbours of every point, by a sweep along the axis of
   // the largest extent: the points sorted along it, each point's search
@@ -402,10 +396,21 @@ std::vector<Seed> FindSeeds(const Pool& pool, int k) {
     return xa < xb || (xa == xb && a < b);
   });
   for (int r = 0; r < n; ++r) rank[order[r]] = r;
+  struct Axis {
+    int plus, minus;
+    Eigen::Vector3d a;
+    double err;
+    double norm;
+  };
+  auto seeds_of_range = [&](int i_begin, int i_end, std::vector<Seed>* out) {
+  std::vector<int> nb(k);
+  std::vector<Eigen::Vector3d> nbp(k);  // the neighbours' points, contiguous
+  std::vector<double> nbd(k);           // their distances, ascending
+  std::vector<Axis> axes;
   // The k smallest (squared distance, index) pairs so far, ascending (an
   // insertion-sorted array: k is small).
   std::vector<std::pair<double, int>> knn(k);
-  for (int i = 0; i < n; ++i) {
+  for (int i = i_begin; i < i_end; ++i) {
     // The keys are unique, so the result is exactly the k first of all pairs
     // sorted.
     int size = 0;
@@ -536,7 +541,24 @@ std::vector<Seed> FindSeeds(const Pool& pool, int k) {
         }
       }
     }
-    if (std::isfinite(best)) seeds.push_back(seed);
+    if (std::isfinite(best)) out->push_back(seed);
+  }
+  };
+  threads = std::clamp(threads, 1, std::max(1, n / 64));
+  if (threads == 1) {
+    seeds_of_range(0, n, &seeds);
+  } else {
+    std::vector<std::vector<Seed>> parts(static_cast<size_t>(threads));
+    std::vector<std::thread> pool_threads;
+    for (int t = 1; t < threads; ++t) {
+      pool_threads.emplace_back(seeds_of_range, n * t / threads, n * (t + 1) / threads,
+                                &parts[static_cast<size_t>(t)]);
+    }
+    seeds_of_range(0, n / threads, &parts[0]);
+    for (std::thread& th : pool_threads) th.join();
+    for (std::vector<Seed>& part : parts) {
+      for (Seed& seed : part) seeds.push_back(std::move(seed));
+    }
   }
   std::stable_sort(seeds.begin(), seeds.end(),
                    [](const Seed& a, const Seed& b) { return a.quality < b.quality; });
@@ -1208,6 +1230,9 @@ Status IdentifyOptions::Validate() const {
   auto bad = [](const std::string& field, double value, const std::string& rule) {
     return Status::InvalidArgument("IdentifyOptions." + field + " = " + FormatNumber(value, 6) + ": " + rule);
   };
+  if (num_threads < 1 || num_threads > 256) {
+    return bad("num_threads", num_threads, "must be in [1, 256]");
+  }
   if (!(assign_gate_sigma > 0.0 && std::isfinite(assign_gate_sigma))) {
     return bad("assign_gate_sigma", assign_gate_sigma, "must be finite and > 0");
   }
@@ -1409,7 +1434,7 @@ Result<IdentifyResult> IdentifySpots(const ModuleCalibration& calibration, const
     }
   }
 
-  const std::vector<Seed> seeds = FindSeeds(pool, options.neighbours);
+  const std::vector<Seed> seeds = FindSeeds(pool, options.neighbours, options.num_threads);
   int tried = 0;
   for (const Seed& seed : seeds) {
     if (std::all_of(done.begin(), done.end(), [](char d) { return d != 0; })) break;

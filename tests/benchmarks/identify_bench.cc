@@ -26,17 +26,20 @@ opl::test::IdentifyScene MakeBenchScene() {
   }
 }
 
+// state.range(0): IdentifyOptions::num_threads (the seed search's threads).
 void BM_IdentifyTwoGrids(benchmark::State& state) {
   const opl::test::IdentifyScene scene = MakeBenchScene();
+  opl::IdentifyOptions options;
+  options.num_threads = static_cast<int>(state.range(0));
   int assigned = 0;
   for (auto _ : state) {
-    auto r = opl::IdentifySpots(scene.calibration, scene.spots);
+    auto r = opl::IdentifySpots(scene.calibration, scene.spots, options);
     assigned = r.ok() ? r->num_assigned() : -1;
     benchmark::DoNotOptimize(r);
   }
   state.counters["points"] = static_cast<double>(scene.spots.size());
   state.counters["assigned"] = assigned;
 }
-BENCHMARK(BM_IdentifyTwoGrids)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_IdentifyTwoGrids)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace

@@ -284,3 +284,31 @@ TEST(IdentifySpots, PassThroughAndSourceRestrictedSpots) {
 
 }  // namespace
 }  // namespace opl
+
+namespace opl {
+namespace {
+
+// The seed search's threads change nothing: the same assignments, spot by
+// spot, with 1, 2 and 3 threads (the seeds are merged in point order).
+TEST(IdentifySpots, ThreadsGiveIdenticalResults) {
+  for (int k = 0; k < 6; ++k) {
+    const test::IdentifyScene scene = test::MakeIdentifyScene(3000 + k);
+    IdentifyOptions one;
+    const Result<IdentifyResult> reference = IdentifySpots(scene.calibration, scene.spots, one);
+    ASSERT_TRUE(reference.ok()) << reference.status().ToString();
+    for (int threads : {2, 3}) {
+      IdentifyOptions options;
+      options.num_threads = threads;
+      const Result<IdentifyResult> r = IdentifySpots(scene.calibration, scene.spots, options);
+      ASSERT_TRUE(r.ok()) << r.status().ToString();
+      EXPECT_EQ(r->source_index, reference->source_index) << "scene " << k << ", " << threads;
+      EXPECT_EQ(r->beam_id, reference->beam_id) << "scene " << k << ", " << threads;
+    }
+  }
+  IdentifyOptions bad;
+  bad.num_threads = 0;
+  EXPECT_EQ(bad.Validate().message(), "IdentifyOptions.num_threads = 0: must be in [1, 256]");
+}
+
+}  // namespace
+}  // namespace opl

@@ -146,6 +146,9 @@ struct IdentifyOptions {
   // mounted side by side. Empty: no prior.
   std::map<std::string, Eigen::Vector3d> expected_origin;
   double expected_origin_tolerance = 0.0;  // > 0 when expected_origin is given
+  // Threads for the seed search (step 1), >= 1. The result does not depend
+  // on it (the points are split into ranges and the seeds merged in order).
+  int num_threads = 1;
   // Seed of the only random choice (LocateSource's RANSAC when it runs);
   // fixed: results repeat run to run.
   uint64_t seed = 1;

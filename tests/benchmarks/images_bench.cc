@@ -82,6 +82,7 @@ void BM_Scene18MP_ImagesToScale(benchmark::State& state) {
       return;
     }
     s = r->measure.scale.scale_factor;
+    if (std::getenv("OPL_BENCH_VERBOSE")) std::fprintf(stderr, "%s", r->ToText().c_str());
     benchmark::DoNotOptimize(s);
   }
   state.counters["s_minus_1_ppm"] = (s - 1.0) * 1e6;

@@ -151,6 +151,9 @@ std::string FrontEndResult::ToText() const {
   if (spot_covariance_scale != 1.0) {
     out << " (spot covariances scaled by " << FormatNumber(spot_covariance_scale, 3) << ")";
   }
+  if (spot_point_covariance_scale != 1.0) {
+    out << "; 3D spot covariances scaled by " << FormatNumber(spot_point_covariance_scale, 3);
+  }
   out << "\n";
   for (const std::string& w : warnings) out << "warning: " << w << "\n";
   return out.str();
@@ -457,6 +460,7 @@ Result<FrontEndResult> RunImageFrontEnd(const Scene& scene, const std::string& i
   // covariances are too small (speckle): the second pass matches and adjusts
   // with the covariances scaled by the spots' variance factor.
   double spot_scale = 1.0;
+  double last_spot_variance_factor = 1.0;
   for (int pass = 0; pass < 2; ++pass) {
   bundle = tag_bundle;
   spot_refs.clear();
@@ -554,6 +558,7 @@ Result<FrontEndResult> RunImageFrontEnd(const Scene& scene, const std::string& i
   const int redundancy = 2 * spot_observations - 3 * static_cast<int>(spot_group.size());
   const double spot_variance_factor = redundancy > 0 ? chi2 / redundancy : 1.0;
   if (pass == 0) result.spot_variance_factor = spot_variance_factor;
+  last_spot_variance_factor = spot_variance_factor;
   if (pass > 0 || !options.rescale_spot_covariances ||
       !(spot_variance_factor > options.max_spot_variance_factor)) {
     break;
@@ -561,6 +566,12 @@ Result<FrontEndResult> RunImageFrontEnd(const Scene& scene, const std::string& i
   spot_scale = spot_variance_factor;
   result.spot_covariance_scale = spot_scale;
   }  // passes
+  // What the last pass still shows (the rematch adds back detections with
+  // larger errors, which the first pass had rejected) scales the spots' 3D
+  // covariances a posteriori, so that u(s) follows the observed scatter.
+  const double spot_point_scale =
+      options.rescale_spot_covariances ? std::max(1.0, last_spot_variance_factor) : 1.0;
+  result.spot_point_covariance_scale = spot_point_scale;
   progress("adjust all", 1, 1);
   result.rms_reprojection_px = adjusted->rms_reprojection_px;
   result.variance_factor = adjusted->variance_factor;
@@ -632,7 +643,7 @@ Result<FrontEndResult> RunImageFrontEnd(const Scene& scene, const std::string& i
     FrontEndSpot spot;
     spot.point_in_scene = *frame * adjusted->data.points[p].point_in_scene;
     if (!adjusted->point_covariances.empty()) {
-      spot.covariance = r * adjusted->point_covariances[p] * r.transpose();
+      spot.covariance = spot_point_scale * (r * adjusted->point_covariances[p] * r.transpose());
     }
     spot.group = spot_group[s];
     result.spots.push_back(spot);

@@ -119,6 +119,12 @@ struct View {
   std::vector<Eigen::Matrix2d> weight;     // cov^-1
   std::vector<Eigen::Matrix2d> eff_weight; // (cov + tau^2 I)^-1
   std::vector<char> usable;
+  // Search radii use a robust "largest" variance: the 90th percentile of the
+  // view's detections (largest eigenvalue), not the maximum, so that one
+  // detection with a huge covariance (a poor fit) does not widen every
+  // epipolar band to the whole image (the search then costs O(S^2) seeds).
+  // A detection whose covariance exceeds it can still be matched, by the
+  // seeds of its other views, within its own gate.
   double max_var_real = 0.0;
   double max_var_ideal = 0.0;
   Grid grid_ideal;
@@ -217,7 +223,8 @@ class Matcher {
           if (!vi.usable[static_cast<size_t>(a)]) continue;
           Eigen::Vector3d line;
           if (!EpipolarLine(vi, vi.ray[static_cast<size_t>(a)], vj, &line)) continue;
-          const double var_a = LargestEigenvalue(vi.cov_ideal[static_cast<size_t>(a)]);
+          const double var_a = std::min(LargestEigenvalue(vi.cov_ideal[static_cast<size_t>(a)]),
+                                        vi.max_var_ideal);
           const double band = std::sqrt(
               g2_ * (vj.max_var_ideal + 16.0 * ratio * ratio * var_a) + tol2_);
           ++stamp_value;
@@ -712,8 +719,22 @@ Result<SpotMatchResult> MatchSpots(const std::vector<Camera>& cameras,
         ++result.not_undistortable;
         continue;
       }
-      view.max_var_real = std::max(view.max_var_real, LargestEigenvalue(S));
-      view.max_var_ideal = std::max(view.max_var_ideal, LargestEigenvalue(view.cov_ideal[s]));
+    }
+    {
+      std::vector<double> real, ideal;
+      for (size_t s = 0; s < view.pixel.size(); ++s) {
+        if (!view.usable[s]) continue;
+        real.push_back(LargestEigenvalue(view.cov[s]));
+        ideal.push_back(LargestEigenvalue(view.cov_ideal[s]));
+      }
+      auto p90 = [](std::vector<double>* values) {
+        if (values->empty()) return 0.0;
+        const size_t k = (values->size() * 9) / 10;
+        std::nth_element(values->begin(), values->begin() + static_cast<std::ptrdiff_t>(k), values->end());
+        return (*values)[k];
+      };
+      view.max_var_real = p90(&real);
+      view.max_var_ideal = p90(&ideal);
     }
     // The epipolar walk visits ~ line length / cell cells: coarser cells
     // there (a few detections each, tested by one dot product).

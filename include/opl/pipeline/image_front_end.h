@@ -28,7 +28,9 @@
 //     first-order covariances of every point (Schur complement). When the
 //     spots' residuals are larger than their covariances say (speckle: the
 //     detector's covariance is too small), every spot covariance is scaled
-//     by the spots' variance factor and steps 5-6 run once more.
+//     by the spots' variance factor and steps 5-6 run once more; the
+//     variance factor that remains then (above 1) scales the spots' 3D
+//     covariances a posteriori.
 //  7. The scene frame of the tag centres (scene.frame: origin, axis, plane
 //     tag; when absent, the three placed tags spanning the largest triangle)
 //     (SceneFromThreePoints, vision/scene_frame.h); every point, covariance
@@ -134,6 +136,10 @@ struct FrontEndResult {
   // their covariances were multiplied by (1: not rescaled).
   double spot_variance_factor = 0.0;
   double spot_covariance_scale = 1.0;
+  // The spots' variance factor of the final adjustment when above 1 (else
+  // 1): the 3D spot covariances are multiplied by it (a posteriori), so
+  // that they, and u(s), follow the observed scatter.
+  double spot_point_covariance_scale = 1.0;
   std::string bundle_report;         // BundleResult::Report() of the final adjustment
   std::vector<std::string> warnings;
 

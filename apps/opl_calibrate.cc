@@ -165,13 +165,7 @@ int RunImages(const Args& args) {
   options.calibrate.source.outlier_threshold = args.outlier_threshold;
   options.front_end.num_threads = args.threads;
   cli::ProgressBar bar("images", cli::StderrIsTerminal());
-  options.front_end.progress = [&](const std::string& stage, int done, int total) {
-    if (stage == "detect") {
-      bar.Update(done, total);
-    } else {
-      bar.Finish();
-    }
-  };
+  options.front_end.progress = bar.StageCallback("detect");
   Result<ImageCalibrationReport> report =
       CalibrateFromImages(*scene, args.images_dir, *nominal, options);
   bar.Finish();

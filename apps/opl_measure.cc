@@ -56,13 +56,7 @@ int RunImages(const Args& args) {
   ImageMeasureOptions options;
   options.front_end.num_threads = args.threads;
   cli::ProgressBar bar("images", cli::StderrIsTerminal());
-  options.front_end.progress = [&](const std::string& stage, int done, int total) {
-    if (stage == "detect") {
-      bar.Update(done, total);
-    } else {
-      bar.Finish();
-    }
-  };
+  options.front_end.progress = bar.StageCallback("detect");
   Result<ImageMeasureReport> report =
       MeasureScaleFromImages(*scene, args.images_dir, *calibration, options);
   bar.Finish();

@@ -53,5 +53,16 @@ void ProgressBar::Finish() {
   drawn_ = false;
 }
 
+std::function<void(const std::string&, int, int)> ProgressBar::StageCallback(
+    const std::string& stage) {
+  return [this, stage](const std::string& reported, int done, int total) {
+    if (reported == stage) {
+      Update(done, total);
+    } else {
+      Finish();
+    }
+  };
+}
+
 }  // namespace cli
 }  // namespace opl

@@ -4,6 +4,8 @@
 // logs and pipes stay quiet), redrawn in place with '\r', erased by Finish().
 #pragma once
 
+#include <functional>
+
 #include <chrono>
 #include <string>
 
@@ -25,6 +27,10 @@ class ProgressBar {
   void Update(int done, int total);
   // Erases the bar (once); also done by the destructor.
   void Finish();
+  // A progress callback (stage, done, total) for the library's long runs
+  // (e.g. FrontEndOptions::progress): draws `stage`, and erases the bar when
+  // any other stage reports. The bar must outlive the callback's use.
+  std::function<void(const std::string&, int, int)> StageCallback(const std::string& stage);
 
   // The text of the bar (without '\r'), for tests.
   static std::string Render(const std::string& label, int done, int total, double elapsed_s);

@@ -125,8 +125,8 @@ struct View {
   // epipolar band to the whole image (the search then costs O(S^2) seeds).
   // A detection whose covariance exceeds it can still be matched, by the
   // seeds of its other views, within its own gate.
-  double max_var_real = 0.0;
-  double max_var_ideal = 0.0;
+  double search_var_real = 0.0;
+  double search_var_ideal = 0.0;
   Grid grid_ideal;
   Grid grid_real;
 };
@@ -224,9 +224,9 @@ class Matcher {
           Eigen::Vector3d line;
           if (!EpipolarLine(vi, vi.ray[static_cast<size_t>(a)], vj, &line)) continue;
           const double var_a = std::min(LargestEigenvalue(vi.cov_ideal[static_cast<size_t>(a)]),
-                                        vi.max_var_ideal);
+                                        vi.search_var_ideal);
           const double band = std::sqrt(
-              g2_ * (vj.max_var_ideal + 16.0 * ratio * ratio * var_a) + tol2_);
+              g2_ * (vj.search_var_ideal + 16.0 * ratio * ratio * var_a) + tol2_);
           ++stamp_value;
           WalkLine(vj.grid_ideal, line, band, &stamp, stamp_value, [&](int b) {
             const Eigen::Vector2d& q = vj.ideal[static_cast<size_t>(b)];
@@ -447,7 +447,7 @@ class Matcher {
       Eigen::Matrix<double, 2, 3> J;
       if (!ProjectWithJacobian(vk, X, &px, &J) || !px.allFinite()) continue;
       const Eigen::Matrix2d S_pred = J * C * J.transpose() + tau2_ * Eigen::Matrix2d::Identity();
-      const double radius = std::sqrt(g2_ * (LargestEigenvalue(S_pred) + vk.max_var_real));
+      const double radius = std::sqrt(g2_ * (LargestEigenvalue(S_pred) + vk.search_var_real));
       if (!(radius < 1e4)) continue;  // the point is barely determined
       int best = -1;
       double best_m2 = g2_;
@@ -733,8 +733,8 @@ Result<SpotMatchResult> MatchSpots(const std::vector<Camera>& cameras,
         std::nth_element(values->begin(), values->begin() + static_cast<std::ptrdiff_t>(k), values->end());
         return (*values)[k];
       };
-      view.max_var_real = p90(&real);
-      view.max_var_ideal = p90(&ideal);
+      view.search_var_real = p90(&real);
+      view.search_var_ideal = p90(&ideal);
     }
     // The epipolar walk visits ~ line length / cell cells: coarser cells
     // there (a few detections each, tested by one dot product).

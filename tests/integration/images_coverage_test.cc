@@ -55,14 +55,12 @@
 #include "opl/sim/module_design.h"
 #include "opl/sim/random.h"
 #include "opl/uncertainty/monte_carlo.h"
+#include "support/scene_images.h"
 
 namespace opl {
 namespace {
 
-std::string SourceDir() {
-  const char* dir = std::getenv("OPL_SOURCE_DIR");
-  return dir ? dir : ".";
-}
+using test::SourceDir;
 
 int SceneCount() {
   const char* n = std::getenv("OPL_COVERAGE_SCENES");
@@ -100,35 +98,10 @@ SceneOutcome MeasureSeed(const Scene& base, uint64_t seed) {
   out.seed = seed;
   Scene scene = base;
   scene.seed = seed;
-  const std::filesystem::path dir =
-      std::filesystem::temp_directory_path() /
-      ("opl_images_coverage_" + std::to_string(seed) + "_" +
-       std::to_string(::testing::UnitTest::GetInstance()->random_seed()));
-  std::filesystem::remove_all(dir);
-  std::filesystem::create_directories(dir);
-  Result<SceneRenderer> renderer = SceneRenderer::Create(scene);
+  const std::filesystem::path dir = test::FreshTempDir("images_coverage_" + std::to_string(seed));
+  Result<SceneRenderer> renderer = test::RenderShotsTo(scene, dir, 2);
   EXPECT_TRUE(renderer.ok()) << renderer.status().ToString();
   if (!renderer.ok()) return out;
-  // Two threads render the shots (RenderShot is thread-safe and a shot
-  // renders the same whatever else is rendered).
-  std::vector<std::string> errors(scene.shots.size());
-  const auto render = [&](size_t first) {
-    for (size_t i = first; i < scene.shots.size(); i += 2) {
-      Result<RenderedShot> shot = renderer->RenderShot(static_cast<int>(i));
-      if (!shot.ok()) {
-        errors[i] = shot.status().ToString();
-      } else if (!cv::imwrite((dir / scene.shots[i].file).string(), shot->image)) {
-        errors[i] = scene.shots[i].file + ": cannot write";
-      }
-    }
-  };
-  std::thread worker(render, size_t{1});
-  render(0);
-  worker.join();
-  for (const std::string& e : errors) {
-    EXPECT_TRUE(e.empty()) << e;
-    if (!e.empty()) return out;
-  }
   Result<ModuleCalibration> calibration = ExactCalibration(*scene.module);
   EXPECT_TRUE(calibration.ok()) << calibration.status().ToString();
   ImageMeasureOptions options;

@@ -32,24 +32,13 @@
 #include "opl/io/scene_json.h"
 #include "opl/lab/render_scene.h"
 #include "opl/sim/module_design.h"
+#include "support/scene_images.h"
 
 namespace opl {
 namespace {
 
-std::string SourceDir() {
-  const char* dir = std::getenv("OPL_SOURCE_DIR");
-  return dir ? dir : ".";
-}
-
-std::filesystem::path TempDir(const std::string& name) {
-  const std::filesystem::path dir =
-      std::filesystem::temp_directory_path() /
-      ("opl_calibrate_images_" + name + "_" +
-       std::to_string(::testing::UnitTest::GetInstance()->random_seed()));
-  std::filesystem::remove_all(dir);
-  std::filesystem::create_directories(dir);
-  return dir;
-}
+using test::FreshTempDir;
+using test::SourceDir;
 
 Scene SessionScene() {
   Result<Scene> scene =
@@ -93,16 +82,11 @@ TEST(CalibrateFromImages, NoiseFreeSessionGivesTheTrueModule) {
   scene.spots.speckle_contrast = 0.0;
   ASSERT_TRUE(scene.module.has_value());
   const ModuleDesign& design = *scene.module;
-  const std::filesystem::path dir = TempDir("clean");
+  const std::filesystem::path dir = FreshTempDir("calibrate_images_clean");
 
   auto start = std::chrono::steady_clock::now();
-  Result<SceneRenderer> truth = SceneRenderer::Create(scene);
+  Result<SceneRenderer> truth = test::RenderShotsTo(scene, dir, 2);
   ASSERT_TRUE(truth.ok()) << truth.status().ToString();
-  for (size_t i = 0; i < scene.shots.size(); ++i) {
-    Result<RenderedShot> shot = truth->RenderShot(static_cast<int>(i));
-    ASSERT_TRUE(shot.ok()) << shot.status().ToString();
-    ASSERT_TRUE(cv::imwrite((dir / scene.shots[i].file).string(), shot->image));
-  }
   const double render_s = Seconds(start);
 
   Result<ModuleCalibration> nominal = ExactCalibration(design);

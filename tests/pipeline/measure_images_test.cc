@@ -22,33 +22,18 @@
 #include "opl/io/scene_json.h"
 #include "opl/lab/render_scene.h"
 #include "opl/sim/module_design.h"
+#include "support/scene_images.h"
 
 namespace opl {
 namespace {
 
-std::string SourceDir() {
-  const char* dir = std::getenv("OPL_SOURCE_DIR");
-  return dir ? dir : ".";
-}
-
-std::filesystem::path TempDir(const std::string& name) {
-  const std::filesystem::path dir =
-      std::filesystem::temp_directory_path() /
-      ("opl_measure_images_" + name + "_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()));
-  std::filesystem::remove_all(dir);
-  std::filesystem::create_directories(dir);
-  return dir;
-}
+using test::FreshTempDir;
+using test::SourceDir;
 
 // Renders every shot of `scene` into `dir`; returns the renderer (truth).
 SceneRenderer RenderAll(const Scene& scene, const std::filesystem::path& dir) {
-  Result<SceneRenderer> renderer = SceneRenderer::Create(scene);
+  Result<SceneRenderer> renderer = test::RenderShotsTo(scene, dir, 2);
   EXPECT_TRUE(renderer.ok()) << renderer.status().ToString();
-  for (size_t i = 0; i < scene.shots.size(); ++i) {
-    Result<RenderedShot> shot = renderer->RenderShot(static_cast<int>(i));
-    EXPECT_TRUE(shot.ok()) << shot.status().ToString();
-    EXPECT_TRUE(cv::imwrite((dir / scene.shots[i].file).string(), shot->image));
-  }
   return std::move(renderer).value();
 }
 
@@ -103,24 +88,12 @@ TEST(MeasureScaleFromImages, NoiseFreeRenderGivesTheTrueScale) {
   scene.image.gain_e_per_dn = 0.0;
   scene.image.bit_depth = 16;
   scene.spots.speckle_contrast = 0.0;
-  const std::filesystem::path dir = TempDir("clean");
+  const std::filesystem::path dir = FreshTempDir("measure_images_clean");
   const SceneRenderer truth = RenderAll(scene, dir);
   Result<ModuleCalibration> calibration = ExactCalibration(*scene.module);
   ASSERT_TRUE(calibration.ok());
   ImageMeasureOptions options;
   options.front_end.num_threads = 2;
-  if (std::getenv("OPL_DEBUG_FRONT_END")) {
-    Result<FrontEndResult> fe = RunImageFrontEnd(scene, dir.string(), options.front_end);
-    ASSERT_TRUE(fe.ok()) << fe.status().ToString();
-    std::cout << fe->ToText() << fe->bundle_report;
-    std::ofstream dump(std::getenv("OPL_DEBUG_FRONT_END"));
-    dump << "group,x,y,z,sx,sy,sz\n";
-    for (const FrontEndSpot& sp : fe->spots) {
-      dump << sp.group << "," << sp.point_in_scene.x() << "," << sp.point_in_scene.y() << ","
-           << sp.point_in_scene.z() << "," << std::sqrt(sp.covariance(0, 0)) << ","
-           << std::sqrt(sp.covariance(1, 1)) << "," << std::sqrt(sp.covariance(2, 2)) << "\n";
-    }
-  }
   Result<ImageMeasureReport> report =
       MeasureScaleFromImages(scene, dir.string(), *calibration, options);
   ASSERT_TRUE(report.ok()) << report.status().ToString();
@@ -146,7 +119,7 @@ TEST(MeasureScaleFromImages, NoiseFreeRenderGivesTheTrueScale) {
 
 TEST(MeasureScaleFromImages, BadInputNamesTheFile) {
   Scene scene = SmallScene();
-  const std::filesystem::path dir = TempDir("bad");
+  const std::filesystem::path dir = FreshTempDir("measure_images_bad");
   Result<ModuleCalibration> calibration = ExactCalibration(*scene.module);
   ASSERT_TRUE(calibration.ok());
   // Missing images.

@@ -91,6 +91,35 @@ void RunParallel(int count, int threads, const std::function<void(int)>& job) {
   for (std::thread& t : pool) t.join();
 }
 
+// sum_k r_k^T (C_k + extra I)^-1 r_k.
+double Chi2WithExtraVariance(const std::vector<Eigen::Vector2d>& residuals,
+                             const std::vector<Eigen::Matrix2d>& covariances, double extra_px2) {
+  double chi2 = 0.0;
+  for (size_t k = 0; k < residuals.size(); ++k) {
+    const Eigen::Matrix2d c = covariances[k] + extra_px2 * Eigen::Matrix2d::Identity();
+    chi2 += residuals[k].dot(c.ldlt().solve(residuals[k]));
+  }
+  return chi2;
+}
+
+// The variance component: the isotropic variance e >= 0 that, added to every
+// covariance, makes chi^2(e) = redundancy. chi^2 falls monotonically in e,
+// and chi^2(sum |r|^2 / redundancy) <= redundancy brackets the root.
+double ExtraVarianceForUnitFactor(const std::vector<Eigen::Vector2d>& residuals,
+                                  const std::vector<Eigen::Matrix2d>& covariances,
+                                  int redundancy) {
+  if (redundancy <= 0) return 0.0;
+  if (Chi2WithExtraVariance(residuals, covariances, 0.0) <= redundancy) return 0.0;
+  double sum_r2 = 0.0;
+  for (const Eigen::Vector2d& r : residuals) sum_r2 += r.squaredNorm();
+  double lo = 0.0, hi = sum_r2 / redundancy;
+  for (int it = 0; it < 60 && hi - lo > 1e-9 * hi; ++it) {
+    const double mid = 0.5 * (lo + hi);
+    (Chi2WithExtraVariance(residuals, covariances, mid) > redundancy ? lo : hi) = mid;
+  }
+  return 0.5 * (lo + hi);
+}
+
 }  // namespace
 
 Status FrontEndOptions::Validate() const {
@@ -148,8 +177,13 @@ std::string FrontEndResult::ToText() const {
   out << "adjustment: RMS " << FormatNumber(rms_reprojection_px, 3)
       << " px, variance factor " << FormatNumber(variance_factor, 3) << "; spots' variance factor "
       << FormatNumber(spot_variance_factor, 3);
-  if (spot_covariance_scale != 1.0) {
-    out << " (spot covariances scaled by " << FormatNumber(spot_covariance_scale, 3) << ")";
+  if (spot_extra_sigma_px > 0.0) {
+    out << " (spot standard deviations enlarged by " << FormatNumber(spot_extra_sigma_px, 3)
+        << " px in quadrature)";
+  }
+  out << "; tag corners' " << FormatNumber(tag_variance_factor, 3);
+  if (tag_extra_sigma_px > 0.0) {
+    out << " (enlarged by " << FormatNumber(tag_extra_sigma_px, 3) << " px in quadrature)";
   }
   if (spot_point_covariance_scale != 1.0) {
     out << "; 3D spot covariances scaled by " << FormatNumber(spot_point_covariance_scale, 3);
@@ -459,10 +493,15 @@ Result<FrontEndResult> RunImageFrontEnd(const Scene& scene, const std::string& i
   // 5-6 run twice when the spots' residuals show that the detector's
   // covariances are too small (speckle): the second pass matches and adjusts
   // with the covariances scaled by the spots' variance factor.
-  double spot_scale = 1.0;
+  double spot_extra_var_px2 = 0.0;
+  double tag_extra_var_px2 = 0.0;
   double last_spot_variance_factor = 1.0;
   for (int pass = 0; pass < 2; ++pass) {
   bundle = tag_bundle;
+  for (int k = 0; k < num_tag_observations; ++k) {
+    bundle.observations[static_cast<size_t>(k)].covariance_px2 +=
+        tag_extra_var_px2 * Eigen::Matrix2d::Identity();
+  }
   spot_refs.clear();
   spot_group.clear();
   for (ImageFindings& f : result.images) f.spots_matched = 0;
@@ -484,7 +523,7 @@ Result<FrontEndResult> RunImageFrontEnd(const Scene& scene, const std::string& i
         const double floor2 = options.min_spot_sigma_px * options.min_spot_sigma_px;
         if (!(c.allFinite() && c.determinant() > 0.0)) c = Eigen::Matrix2d::Identity() * floor2;
         c += Eigen::Matrix2d::Identity() * floor2;
-        v.covariance_px2 = spot_scale * c;
+        v.covariance_px2 = c + spot_extra_var_px2 * Eigen::Matrix2d::Identity();
         views.push_back(v);
       }
       spots_per_view.push_back(std::move(views));
@@ -541,8 +580,8 @@ Result<FrontEndResult> RunImageFrontEnd(const Scene& scene, const std::string& i
   }
   // The spots' variance factor: their chi^2 over their redundancy (2 per
   // observation - 3 per point; the cameras are held by the tags).
-  double chi2 = 0.0;
-  int spot_observations = 0;
+  std::vector<Eigen::Vector2d> spot_residuals;
+  std::vector<Eigen::Matrix2d> spot_covariances;
   for (size_t k = static_cast<size_t>(num_tag_observations);
        k < adjusted->data.observations.size(); ++k) {
     const BundleObservation& ob = adjusted->data.observations[k];
@@ -551,20 +590,50 @@ Result<FrontEndResult> RunImageFrontEnd(const Scene& scene, const std::string& i
             adjusted->data.points[static_cast<size_t>(ob.point)].point_in_scene, &px)) {
       continue;
     }
-    const Eigen::Vector2d r = px - ob.pixel_px;
-    chi2 += r.dot(ob.covariance_px2.ldlt().solve(r));
-    ++spot_observations;
+    spot_residuals.push_back(px - ob.pixel_px);
+    spot_covariances.push_back(ob.covariance_px2);
   }
-  const int redundancy = 2 * spot_observations - 3 * static_cast<int>(spot_group.size());
-  const double spot_variance_factor = redundancy > 0 ? chi2 / redundancy : 1.0;
-  if (pass == 0) result.spot_variance_factor = spot_variance_factor;
+  const int redundancy = 2 * static_cast<int>(spot_residuals.size()) -
+                         3 * static_cast<int>(spot_group.size());
+  const double spot_variance_factor =
+      redundancy > 0 ? Chi2WithExtraVariance(spot_residuals, spot_covariances, 0.0) / redundancy
+                     : 1.0;
+  // The same for the tag corners: 2 per observation - 3 per corner - 6 per
+  // camera + 7 (the datum).
+  std::vector<Eigen::Vector2d> tag_residuals;
+  std::vector<Eigen::Matrix2d> tag_covariances;
+  for (int k = 0; k < num_tag_observations; ++k) {
+    const BundleObservation& ob = adjusted->data.observations[static_cast<size_t>(k)];
+    Eigen::Vector2d px;
+    if (!adjusted->data.CameraAt(ob.camera).Project(
+            adjusted->data.points[static_cast<size_t>(ob.point)].point_in_scene, &px)) {
+      continue;
+    }
+    tag_residuals.push_back(px - ob.pixel_px);
+    tag_covariances.push_back(ob.covariance_px2);
+  }
+  const int tag_redundancy = 2 * static_cast<int>(tag_residuals.size()) -
+                             3 * first_spot_point - 6 * static_cast<int>(bundle.cameras.size()) + 7;
+  const double tag_variance_factor =
+      tag_redundancy > 0
+          ? Chi2WithExtraVariance(tag_residuals, tag_covariances, 0.0) / tag_redundancy
+          : 1.0;
+  if (pass == 0) {
+    result.spot_variance_factor = spot_variance_factor;
+    result.tag_variance_factor = tag_variance_factor;
+  }
   last_spot_variance_factor = spot_variance_factor;
-  if (pass > 0 || !options.rescale_spot_covariances ||
-      !(spot_variance_factor > options.max_spot_variance_factor)) {
-    break;
+  const bool spots_off = spot_variance_factor > options.max_spot_variance_factor;
+  const bool tags_off = tag_variance_factor > options.max_spot_variance_factor;
+  if (pass > 0 || !options.rescale_spot_covariances || !(spots_off || tags_off)) break;
+  if (spots_off) {
+    spot_extra_var_px2 = ExtraVarianceForUnitFactor(spot_residuals, spot_covariances, redundancy);
+    result.spot_extra_sigma_px = std::sqrt(spot_extra_var_px2);
   }
-  spot_scale = spot_variance_factor;
-  result.spot_covariance_scale = spot_scale;
+  if (tags_off) {
+    tag_extra_var_px2 = ExtraVarianceForUnitFactor(tag_residuals, tag_covariances, tag_redundancy);
+    result.tag_extra_sigma_px = std::sqrt(tag_extra_var_px2);
+  }
   }  // passes
   // What the last pass still shows (the rematch adds back detections with
   // larger errors, which the first pass had rejected) scales the spots' 3D

@@ -27,9 +27,11 @@
 //     scene frame (the first corners of the frame's three tags), with
 //     first-order covariances of every point (Schur complement). When the
 //     spots' residuals are larger than their covariances say (speckle: the
-//     detector's covariance is too small), every spot covariance is scaled
-//     by the spots' variance factor and steps 5-6 run once more; the
-//     variance factor that remains then (above 1) scales the spots' 3D
+//     detector's covariance is too small), a variance component is
+//     estimated: the isotropic pixel variance that, added to every spot's
+//     covariance, brings their chi^2 to their redundancy (the same for the
+//     tag corners when theirs are too small); steps 5-6 then run once more.
+//     The spots' variance factor that remains (above 1) scales their 3D
 //     covariances a posteriori.
 //  7. The scene frame of the tag centres (scene.frame: origin, axis, plane
 //     tag; when absent, the three placed tags spanning the largest triangle)
@@ -77,10 +79,16 @@ struct FrontEndOptions {
   // The detector underestimates the spread of speckled spots
   // (docs/spot_detection.md). When the spots' variance factor after the
   // adjustment (chi^2 of their residuals over their redundancy) exceeds
-  // max_spot_variance_factor, every spot covariance is multiplied by it and
-  // the matching and the adjustment are run again (step 6 of the header), so
-  // that the matching gates and the 3D covariances (hence u(s)) follow the
-  // observed scatter. > 1.
+  // max_spot_variance_factor, the variance e [px^2] that makes it 1 when
+  // added to every spot covariance (C + e I) is estimated and the matching
+  // and the adjustment are run again with C + e I (step 6 of the header),
+  // so that the matching gates and the 3D covariances (hence u(s)) follow
+  // the observed scatter. Speckle of a fixed grain size moves a centroid
+  // by about the same amount whatever the spot's brightness, so an added
+  // term fits it better than a factor on the detector's (noise-driven)
+  // covariance: the factor kept the bright spots' covariances too small
+  // and u(s) 22% low (docs/images.md). Tag corners get the same treatment
+  // when their own variance factor exceeds the limit. > 1.
   bool rescale_spot_covariances = true;
   double max_spot_variance_factor = 1.5;
   // Worker threads for the detection, >= 0; 0 = every core.
@@ -132,10 +140,14 @@ struct FrontEndResult {
   std::array<int, 3> frame_tags = {-1, -1, -1};  // origin, axis, plane
   double rms_reprojection_px = 0.0;  // final adjustment, every observation
   double variance_factor = 0.0;      // final adjustment
-  // The spots' variance factor after the first adjustment, and the factor
-  // their covariances were multiplied by (1: not rescaled).
+  // The spots' and the tag corners' variance factors after the first
+  // adjustment, and the standard deviations added to their pixel
+  // covariances in quadrature (0: not enlarged; FrontEndOptions::
+  // rescale_spot_covariances).
   double spot_variance_factor = 0.0;
-  double spot_covariance_scale = 1.0;
+  double spot_extra_sigma_px = 0.0;
+  double tag_variance_factor = 0.0;
+  double tag_extra_sigma_px = 0.0;
   // The spots' variance factor of the final adjustment when above 1 (else
   // 1): the 3D spot covariances are multiplied by it (a posteriori), so
   // that they, and u(s), follow the observed scatter.

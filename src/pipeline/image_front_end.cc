@@ -713,6 +713,9 @@ Result<FrontEndResult> RunImageFrontEnd(const Scene& scene, const std::string& i
     spot.point_in_scene = *frame * adjusted->data.points[p].point_in_scene;
     if (!adjusted->point_covariances.empty()) {
       spot.covariance = spot_point_scale * (r * adjusted->point_covariances[p] * r.transpose());
+      spot.own_covariance =
+          spot_point_scale * (r * adjusted->point_own_covariances[p] * r.transpose());
+      spot.shared_factor = std::sqrt(spot_point_scale) * (r * adjusted->point_shared_factors[p]);
     }
     spot.group = spot_group[s];
     result.spots.push_back(spot);

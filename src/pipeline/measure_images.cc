@@ -1,11 +1,15 @@
 #include "opl/pipeline/measure_images.h"
 
 #include <algorithm>
+#include <array>
+#include <cmath>
 #include <map>
 #include <set>
 #include <sstream>
 
 #include <nlohmann/json.hpp>
+
+#include "opl/core/format.h"
 
 namespace opl {
 
@@ -21,6 +25,12 @@ std::string ImageMeasureReport::ToText() const {
     out << "identification, exposure group " << g << ":\n" << identification[g].ToText();
   }
   out << "\n" << measure.ToText();
+  if (shared_components > 0) {
+    out << "u(s) = sqrt(own^2 + shared^2): own " << FormatNumber(u_scale_factor_own, 3)
+        << " (the spots' own errors), shared " << FormatNumber(u_scale_factor_shared, 3)
+        << " (camera poses and datum tags, common to every spot; " << shared_components
+        << " components propagated)\n";
+  }
   for (const std::string& c : metadata_conflicts) out << "warning: " << c << "\n";
   return out.str();
 }
@@ -61,6 +71,8 @@ std::string ImageMeasureReport::ToJson() const {
   doc["frame_tags"] = front_end.frame_tags;
   doc["rms_reprojection_px"] = front_end.rms_reprojection_px;
   doc["variance_factor"] = front_end.variance_factor;
+  doc["u_scale_factor_own"] = u_scale_factor_own;
+  doc["u_scale_factor_shared"] = u_scale_factor_shared;
   doc["warnings"] = front_end.warnings;
   doc["measure"] = ordered_json::parse(measure.ToJson());
   doc["metadata_conflicts"] = metadata_conflicts;
@@ -141,8 +153,11 @@ Result<ImageMeasureReport> MeasureScaleFromImages(const Scene& scene,
     report.identification.push_back(std::move(*identified));
   }
   std::vector<Spot> assigned;
-  for (const Spot& s : report.spots) {
-    if (s.assigned()) assigned.push_back(s);
+  std::vector<size_t> front_end_index;
+  for (size_t k = 0; k < report.spots.size(); ++k) {
+    if (!report.spots[k].assigned()) continue;
+    assigned.push_back(report.spots[k]);
+    front_end_index.push_back(k);
   }
   if (assigned.empty()) {
     std::string what;
@@ -153,8 +168,68 @@ Result<ImageMeasureReport> MeasureScaleFromImages(const Scene& scene,
     }
     return Status::NoSolution("no spot was identified in any exposure group" + what);
   }
+  // The own / shared split of every assigned spot, when the front end gave it.
+  Eigen::Index m = -1;
+  bool split = options.propagate_shared_errors;
+  for (size_t k : front_end_index) {
+    const Eigen::MatrixXd& K = fe.spots[k].shared_factor;
+    if (K.size() == 0 || (m >= 0 && K.cols() != m)) split = false;
+    m = K.cols();
+  }
+  if (split) {
+    for (size_t i = 0; i < assigned.size(); ++i) {
+      assigned[i].observation.cov_in_scene = fe.spots[front_end_index[i]].own_covariance;
+    }
+  }
   Result<MeasureReport> measure = MeasureScale(calibration, assigned, options.measure);
   if (!measure.ok()) return measure.status();
+  if (split && m > 0) {
+    // g_k = ds / dz_k by central differences at one standard deviation (s
+    // is linear in z to far better than that: a shared component moves the
+    // spots by a fraction of their own scatter).
+    ScaleResult& scale = measure->scale;
+    double shared2 = 0.0;
+    std::vector<double> photo2(scale.lengths.size(), 0.0), scale2(scale.lengths.size(), 0.0);
+    for (Eigen::Index k = 0; k < m; ++k) {
+      std::array<ScaleResult, 2> moved;
+      for (int side = 0; side < 2; ++side) {
+        std::vector<Spot> perturbed = assigned;
+        const double sign = side == 0 ? 1.0 : -1.0;
+        for (size_t i = 0; i < perturbed.size(); ++i) {
+          perturbed[i].observation.point_in_scene +=
+              sign * fe.spots[front_end_index[i]].shared_factor.col(k);
+        }
+        Result<MeasureReport> r = MeasureScale(calibration, perturbed, options.measure);
+        if (!r.ok()) {
+          return Status(r.status().code(), "propagating the spots' shared errors (component " +
+                                               std::to_string(k + 1) + " of " +
+                                               std::to_string(m) + "): " + r.status().message());
+        }
+        if (r->scale.lengths.size() != scale.lengths.size()) {
+          return Status::NoSolution(
+              "propagating the spots' shared errors (component " + std::to_string(k + 1) +
+              "): a one-sigma move of the cameras changed which sources were located");
+        }
+        moved[static_cast<size_t>(side)] = r->scale;
+      }
+      const double g = 0.5 * (moved[0].scale_factor - moved[1].scale_factor);
+      shared2 += g * g;
+      for (size_t l = 0; l < scale.lengths.size(); ++l) {
+        const double gp = 0.5 * (moved[0].lengths[l].photo - moved[1].lengths[l].photo);
+        const double gs = 0.5 * (moved[0].lengths[l].scale - moved[1].lengths[l].scale);
+        photo2[l] += gp * gp;
+        scale2[l] += gs * gs;
+      }
+    }
+    report.u_scale_factor_own = scale.u_scale_factor;
+    report.u_scale_factor_shared = std::sqrt(shared2);
+    report.shared_components = static_cast<int>(m);
+    scale.u_scale_factor = std::hypot(scale.u_scale_factor, report.u_scale_factor_shared);
+    for (size_t l = 0; l < scale.lengths.size(); ++l) {
+      scale.lengths[l].u_photo = std::sqrt(scale.lengths[l].u_photo * scale.lengths[l].u_photo + photo2[l]);
+      scale.lengths[l].u_scale = std::sqrt(scale.lengths[l].u_scale * scale.lengths[l].u_scale + scale2[l]);
+    }
+  }
   report.measure = std::move(*measure);
   return report;
 }

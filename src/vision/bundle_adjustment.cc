@@ -486,6 +486,7 @@ Result<BundleResult> BundleAdjust(const BundleData& data, const BundleOptions& o
       S.noalias() -= B[j] * W[j];
     }
     Eigen::MatrixXd Sg = Eigen::MatrixXd::Zero(nc, nc);
+    Eigen::MatrixXd Lg = Eigen::MatrixXd::Zero(nc, nc);  // Sg = Lg Lg^T
     if (failure.empty() && nc > 0) {
       const Eigen::MatrixXd Ssym = 0.5 * (S + S.transpose());
       Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(Ssym);
@@ -509,6 +510,7 @@ Result<BundleResult> BundleAdjust(const BundleData& data, const BundleOptions& o
           Eigen::VectorXd inv = Eigen::VectorXd::Zero(nc);
           for (int e = gauge_dim; e < nc; ++e) inv(e) = 1.0 / ev(e);
           Sg = es.eigenvectors() * inv.asDiagonal() * es.eigenvectors().transpose();
+          Lg = es.eigenvectors() * inv.cwiseSqrt().asDiagonal();
         }
       }
     }
@@ -522,9 +524,14 @@ Result<BundleResult> BundleAdjust(const BundleData& data, const BundleOptions& o
         if (a == b) c += Dinv[a];
         return c;
       };
+      result.point_own_covariances.assign(n_pts, Eigen::Matrix3d::Zero());
       if (!datum) {
+        result.point_shared_factors.assign(n_pts, Eigen::MatrixXd::Zero(3, nc));
         for (size_t j = 0; j < n_pts; ++j) {
-          if (point_column[j] >= 0) result.point_covariances[j] = cross(j, j);
+          if (point_column[j] < 0) continue;
+          result.point_covariances[j] = cross(j, j);
+          result.point_own_covariances[j] = Dinv[j];
+          if (nc > 0) result.point_shared_factors[j] = W[j] * Lg;
         }
         result.covariance_method =
             "first order, Schur complement of J^T J (gauge held by the constant blocks)";
@@ -539,6 +546,13 @@ Result<BundleResult> BundleAdjust(const BundleData& data, const BundleOptions& o
             cov_abc.block<3, 3>(static_cast<Eigen::Index>(3 * r), static_cast<Eigen::Index>(3 * c)) = cross(abc[r], abc[c]);
           }
         }
+        // The own / shared split: X_j = x_j + e_j - W_j Lg xi (e_j ~ D_j^-1,
+        // xi ~ N(0, I) the cameras'), and F(a, b, c, x_j) shares e_a, e_b,
+        // e_c (whitened by their Cholesky factors) and xi with every point.
+        std::array<Eigen::Matrix3d, 3> chol_abc;
+        for (size_t r = 0; r < 3; ++r) chol_abc[r] = Dinv[abc[r]].llt().matrixL();
+        const Eigen::Index m = 9 + static_cast<Eigen::Index>(nc);
+        result.point_shared_factors.assign(n_pts, Eigen::MatrixXd::Zero(3, m));
         const double d0 = (Eigen::Map<const Eigen::Vector3d>(p.points[ib].data()) -
                            Eigen::Map<const Eigen::Vector3d>(p.points[ia].data())).norm();
         for (size_t j = 0; j < n_pts; ++j) {
@@ -569,6 +583,21 @@ Result<BundleResult> BundleAdjust(const BundleData& data, const BundleOptions& o
             F.row(r) = (s * y).v.transpose();
           }
           result.point_covariances[j] = F * cov * F.transpose();
+          Eigen::MatrixXd& K = result.point_shared_factors[j];
+          Eigen::Matrix3d own_j = F.rightCols<3>();
+          Eigen::MatrixXd camera_part = Eigen::MatrixXd::Zero(3, nc);
+          if (nc > 0) camera_part = F.rightCols<3>() * W[j];
+          for (size_t r = 0; r < 3; ++r) {
+            Eigen::Matrix3d Fr = F.block<3, 3>(0, static_cast<Eigen::Index>(3 * r));
+            if (abc[r] == j) {  // a datum point: its own error is the shared one
+              Fr += F.rightCols<3>();
+              own_j.setZero();
+            }
+            K.block<3, 3>(0, static_cast<Eigen::Index>(3 * r)) = Fr * chol_abc[r];
+            if (nc > 0) camera_part += F.block<3, 3>(0, static_cast<Eigen::Index>(3 * r)) * W[abc[r]];
+          }
+          if (nc > 0) K.rightCols(nc) = camera_part * Lg;
+          result.point_own_covariances[j] = own_j * Dinv[j] * own_j.transpose();
         }
         result.covariance_method =
             "first order, Schur complement of J^T J, pseudo-inverse over the 7-dof gauge, "

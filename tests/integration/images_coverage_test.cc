@@ -81,7 +81,8 @@ struct SceneOutcome {
   double spot_variance_factor = 0.0;   // front end, first adjustment
   double spot_covariance_scale = 1.0;
   double tag_variance_factor = 0.0, tag_extra_sigma_px = 0.0;
-  std::vector<double> locate_variance_factor;  // per located source  // front end: factor applied
+  std::vector<double> locate_variance_factor;  // per located source
+  double u_shared = 0.0;  // part of u shared by the spots (cameras, datum)  // front end: factor applied
   double final_variance_factor = 0.0;  // front end: final adjustment (tags and spots)
   double seconds = 0.0;                // render + measure
   // Per identified spot, in the design frame, mm: residual of the truth fit
@@ -164,6 +165,7 @@ SceneOutcome MeasureSeed(const Scene& base, uint64_t seed) {
   out.spot_covariance_scale = report->front_end.spot_extra_sigma_px;
   out.final_variance_factor = report->front_end.variance_factor;
   out.tag_variance_factor = report->front_end.tag_variance_factor;
+  out.u_shared = report->u_scale_factor_shared;
   for (const auto& [name, located] : report->measure.sources) {
     out.locate_variance_factor.push_back(located.variance_factor);
   }
@@ -187,7 +189,7 @@ const std::vector<SceneOutcome>& Outcomes() {
       all.push_back(MeasureSeed(*scene, static_cast<uint64_t>(k)));
       const SceneOutcome& o = all.back();
       std::cout << "seed " << k << ": s " << FormatNumber(o.s, 9) << " +- "
-                << FormatNumber(o.u, 3) << ", s_true " << FormatNumber(o.s_true, 9) << ", z "
+                << FormatNumber(o.u, 3) << " (shared " << FormatNumber(o.u_shared, 3) << "), s_true " << FormatNumber(o.s_true, 9) << ", z "
                 << FormatNumber(o.z, 3) << ", " << o.points << " spots, fit rms "
                 << FormatNumber(o.fit_rms_mm, 3) << " mm, spot variance factor "
                 << FormatNumber(o.spot_variance_factor, 3) << " (extra sigma px "

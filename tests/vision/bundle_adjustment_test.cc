@@ -339,15 +339,33 @@ TEST(BundleAdjustment, FixedGaugeCovarianceMatchesCeresCovariance) {
   ceres::Covariance cov(co);
   std::vector<std::pair<const double*, const double*>> blocks;
   for (const auto& p : x) blocks.emplace_back(p.data(), p.data());
+  for (size_t j = 1; j < x.size(); ++j) blocks.emplace_back(x[0].data(), x[j].data());
   ASSERT_TRUE(cov.Compute(blocks, &problem));
-  double worst = 0.0;
+  ASSERT_EQ(r->point_own_covariances.size(), x.size());
+  ASSERT_EQ(r->point_shared_factors.size(), x.size());
+  double worst = 0.0, worst_split = 0.0, worst_cross = 0.0;
   for (size_t j = 0; j < x.size(); ++j) {
     Eigen::Matrix3d c;
     cov.GetCovarianceBlock(x[j].data(), x[j].data(), c.data());
     worst = std::max(worst, (c - r->point_covariances[j]).norm() / c.norm());
+    // The own / shared split adds up to the same covariance...
+    const Eigen::MatrixXd& K = r->point_shared_factors[j];
+    const Eigen::Matrix3d sum = r->point_own_covariances[j] + K * K.transpose();
+    worst_split = std::max(worst_split, (c - sum).norm() / c.norm());
+    // ... and its shared part is the cross-covariance with another point.
+    if (j > 0) {
+      Eigen::Matrix<double, 3, 3, Eigen::RowMajor> cross;  // Ceres writes row-major
+      cov.GetCovarianceBlock(x[0].data(), x[j].data(), cross.data());
+      const Eigen::Matrix3d predicted = r->point_shared_factors[0] * K.transpose();
+      worst_cross = std::max(worst_cross, (cross - predicted).norm() / c.norm());
+    }
   }
-  std::printf("Schur covariance vs ceres::Covariance (DENSE_SVD): worst relative difference %.2e\n", worst);
+  std::printf("Schur covariance vs ceres::Covariance (DENSE_SVD): worst relative difference %.2e; "
+              "own + shared %.2e; cross-covariances %.2e (of the point's covariance)\n",
+              worst, worst_split, worst_cross);
   EXPECT_LT(worst, 1e-6);
+  EXPECT_LT(worst_split, 1e-6);
+  EXPECT_LT(worst_cross, 1e-6);
 }
 
 TEST(BundleAdjustment, DatumCovarianceMatchesMonteCarlo) {
@@ -371,6 +389,11 @@ TEST(BundleAdjustment, DatumCovarianceMatchesMonteCarlo) {
   const int trials = MonteCarloTrials(200);
   const size_t np = truth.size();
   std::vector<Eigen::Matrix3d> scatter(np, Eigen::Matrix3d::Zero());
+  // Pairs of points: the spread of their difference needs the
+  // cross-covariance, Cov(X_i - X_j) = C_i + C_j - K_i K_j^T - K_j K_i^T.
+  std::vector<std::pair<size_t, size_t>> pairs;
+  for (size_t j = 1; j < np; j += 3) pairs.emplace_back(j - 1, j);
+  std::vector<Eigen::Matrix3d> pair_scatter(pairs.size(), Eigen::Matrix3d::Zero());
   for (int t = 0; t < trials; ++t) {
     const BundleData noisy = Noisy(s, sigma, rng);
     BundleOptions o = options;
@@ -384,7 +407,31 @@ TEST(BundleAdjustment, DatumCovarianceMatchesMonteCarlo) {
       const Eigen::Vector3d e = k * est[j] - truth[j];
       scatter[j] += e * e.transpose() / trials;
     }
+    for (size_t q = 0; q < pairs.size(); ++q) {
+      const auto [a, b] = pairs[q];
+      const Eigen::Vector3d e = k * (est[a] - est[b]) - (truth[a] - truth[b]);
+      pair_scatter[q] += e * e.transpose() / trials;
+    }
   }
+  // Pooled over the pairs: predicted with the split, and as if independent.
+  double pair_ratio2 = 0.0, independent_ratio2 = 0.0;
+  for (size_t q = 0; q < pairs.size(); ++q) {
+    const auto [a, b] = pairs[q];
+    const Eigen::MatrixXd& Ka = predicted->point_shared_factors[a];
+    const Eigen::MatrixXd& Kb = predicted->point_shared_factors[b];
+    const Eigen::Matrix3d independent = predicted->point_covariances[a] + predicted->point_covariances[b];
+    const Eigen::Matrix3d with_cross =
+        independent - Ka * Kb.transpose() - Kb * Ka.transpose();
+    pair_ratio2 += pair_scatter[q].trace() / with_cross.trace();
+    independent_ratio2 += pair_scatter[q].trace() / independent.trace();
+  }
+  const double pair_ratio = std::sqrt(pair_ratio2 / static_cast<double>(pairs.size()));
+  const double independent_ratio = std::sqrt(independent_ratio2 / static_cast<double>(pairs.size()));
+  std::printf("differences of %zu point pairs: Monte Carlo / predicted sigma %.3f with the "
+              "cross-covariances, %.3f as if independent\n",
+              pairs.size(), pair_ratio, independent_ratio);
+  EXPECT_GT(pair_ratio, 0.85);
+  EXPECT_LT(pair_ratio, 1.18);
   double sum_ratio2 = 0.0;
   int n = 0;
   double worst_point = 1.0;

@@ -117,6 +117,12 @@ struct ImageFindings {
 struct FrontEndSpot {
   Eigen::Vector3d point_in_scene = Eigen::Vector3d::Zero();  // scene frame, unscaled
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();      // first order
+  // Its split (BundleResult::point_shared_factors): covariance =
+  // own_covariance + shared_factor shared_factor^T, and two spots' errors
+  // are correlated through shared_factor (the cameras' and the datum tags'
+  // errors, which every spot shares): Cov(spot i, spot j) = K_i K_j^T.
+  Eigen::Matrix3d own_covariance = Eigen::Matrix3d::Zero();
+  Eigen::MatrixXd shared_factor;  // 3 x m, the same m for every spot; empty when not computed
   int group = 0;  // exposure group index (FrontEndResult::groups)
   // The detections it was made of: (image index, index in that image's spots).
   std::vector<std::pair<int, int>> views;

@@ -42,6 +42,17 @@ namespace opl {
 struct ImageMeasureOptions {
   FrontEndOptions front_end;
   MeasureOptions measure;
+  // The 3D spots' errors are not independent: every spot of an image shares
+  // its camera's pose error (and the datum tags' errors), which MeasureScale,
+  // treating the spots as independent, cannot see, while u(s) of a small
+  // module is set by a near-degenerate direction in which such a common
+  // error does not average down. When true (and the front end gave the split,
+  // FrontEndSpot::shared_factor), MeasureScale weights each spot by its own
+  // covariance only, and the shared part is propagated to s separately, by
+  // central differences: s re-solved with every spot moved by +- one
+  // standard deviation of each shared component (2 m re-solves, m = 9 + 6
+  // per camera): u(s)^2 = u_own^2 + sum_k g_k^2.
+  bool propagate_shared_errors = true;
 
   Status Validate() const;
 };
@@ -58,13 +69,20 @@ struct ImageMeasureReport {
   // Spots not used: identified as a source that was off in their exposure
   // group, or a (source, beam) another group already gave.
   std::vector<std::string> metadata_conflicts;
+  // u(s) in its two parts (ImageMeasureOptions::propagate_shared_errors):
+  // the spots' own errors (MeasureScale's) and the shared ones; u(s) in
+  // `measure` is their root sum of squares. 0 / 0 when not propagated.
+  double u_scale_factor_own = 0.0;
+  double u_scale_factor_shared = 0.0;
+  int shared_components = 0;  // m
 
   // The front end's report, each group's identification, the measurement,
   // then the conflicts.
   std::string ToText() const;
   // {"format": "opl.image_measure_report", "version": 1, "images": [...],
   //  "exposure_groups": [...], "frame_tags": [...], "rms_reprojection_px",
-//  "variance_factor", "warnings",
+//  "variance_factor", "u_scale_factor_own", "u_scale_factor_shared",
+  //  "warnings",
   //  "measure": <the measure report JSON>, "metadata_conflicts": [...]}.
   std::string ToJson() const;
 };

@@ -161,6 +161,16 @@ struct BundleResult {
   // Per point, 3x3 covariance of point_in_scene (zero for constant points)
   // when computed; empty otherwise. covariance_method says how, or why not.
   std::vector<Eigen::Matrix3d> point_covariances;
+  // The same split into what is each point's own and what it shares with
+  // every other point (the cameras' errors; with kThreePointDatum also the
+  // datum points'): error_j = own_j + point_shared_factors[j] * z, z ~ N(0, I)
+  // one vector for all points (its dimension m the same for every point), so
+  //   point_covariances[j] = point_own_covariances[j] + K_j K_j^T,
+  //   Cov(X_i, X_j) = K_i K_j^T (i != j).
+  // What a later step that treats the points as independent must add back
+  // (pipeline/measure_images.h). Filled with point_covariances.
+  std::vector<Eigen::Matrix3d> point_own_covariances;
+  std::vector<Eigen::MatrixXd> point_shared_factors;
   std::string covariance_method;
 
   // Multi-line report: solve, costs, RMS per camera, covariance summary.

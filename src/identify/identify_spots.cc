@@ -398,7 +398,8 @@ std::vector<Seed> FindSeeds(const Pool& pool, int k, int threads) {
   for (int r = 0; r < n; ++r) rank[order[r]] = r;
   struct Axis {
     int plus, minus;
-    Eigen::Vector3d a;
+    Eigen::Vector3d a;      // half the step from minus to plus
+    Eigen::Vector3d bend;   // (plus + minus) / 2 - p0: the second-order term
     double err;
     double norm;
   };
@@ -468,7 +469,7 @@ std::vector<Seed> FindSeeds(const Pool& pool, int k, int threads) {
         if (std::min(la, lb) < 0.5 * lmax) break;
         const double err = (va + vb).norm() / lmax;
         if (err > 0.35) continue;
-        axes.push_back({nb[a], nb[b], 0.5 * (va - vb), err, 0.0});
+        axes.push_back({nb[a], nb[b], 0.5 * (va - vb), 0.5 * (va + vb), err, 0.0});
       }
     }
     double best = std::numeric_limits<double>::infinity();
@@ -488,10 +489,17 @@ std::vector<Seed> FindSeeds(const Pool& pool, int k, int threads) {
         if (std::abs(c) > 0.8) continue;
         // Lattice support: how many of the 8 further nodes p0 +- a +- b,
         // p0 +- 2a, p0 +- 2b hold a point (within 20% of the shorter step).
+        // The nodes are predicted to second order along each axis,
+        // x(i, j) = i a + j b + i^2 ea + j^2 eb (ea, eb: the axes' bends),
+        // which follows a smoothly curved or foreshortened grid and does
+        // not support a cross that mixes two interleaved grids (its bend
+        // alternates in sign from node to node: p0 +- 2a lie 4 ea away).
         const Eigen::Vector3d& va = axes[a].a;
         const Eigen::Vector3d& vb = axes[b].a;
-        const std::array<Eigen::Vector3d, 8> predicted = {va + vb, va - vb, -va + vb, -va - vb,
-                                                          2.0 * va, -2.0 * va, 2.0 * vb, -2.0 * vb};
+        const Eigen::Vector3d eab = axes[a].bend + axes[b].bend;
+        const std::array<Eigen::Vector3d, 8> predicted = {
+            va + vb + eab,  va - vb + eab,  -va + vb + eab, -va - vb + eab, 2.0 * va + 4.0 * axes[a].bend,
+            -2.0 * va + 4.0 * axes[a].bend, 2.0 * vb + 4.0 * axes[b].bend, -2.0 * vb + 4.0 * axes[b].bend};
         const double tol2 = 0.04 * std::min(na, nbn) * std::min(na, nbn);
         static const std::array<Eigen::Vector2i, 8> kOffsets = {
             Eigen::Vector2i(1, 1),  Eigen::Vector2i(1, -1), Eigen::Vector2i(-1, 1), Eigen::Vector2i(-1, -1),
@@ -563,6 +571,42 @@ std::vector<Seed> FindSeeds(const Pool& pool, int k, int threads) {
   std::stable_sort(seeds.begin(), seeds.end(),
                    [](const Seed& a, const Seed& b) { return a.quality < b.quality; });
   return seeds;
+}
+
+// The crosses derived from a seed whose own cross may mix two interleaved
+// grids: with the cross's steps a, b, the crosses (2a, b), (a, 2b) and
+// (a + b, a - b), each with the seed's patch points that fall on its
+// lattice (offsets re-expressed in the new steps). Two grids of one pattern
+// translated by about half a pitch along a (the prototype's side-by-side
+// sources on a wall) make a point set whose shortest crosses alternate
+// between the grids along a; (2a, b) is then a cross of one grid. A
+// translation by half a pitch along both steps makes a centred lattice whose
+// shortest crosses run along the diagonals of the grids; (a + b, a - b) is
+// then a cross of one grid. Crosses without their two step points, or with
+// fewer than 6 patch points, are left out.
+std::vector<Seed> DerivedSeeds(const Seed& seed) {
+  // New steps (a', b') in the seed's offsets: a' = (m[0], m[1]), b' = (m[2], m[3]).
+  static constexpr std::array<std::array<int, 4>, 3> kSteps = {{{2, 0, 0, 1}, {1, 0, 0, 2}, {1, 1, 1, -1}}};
+  std::vector<Seed> out;
+  for (const auto& m : kSteps) {
+    const int det = m[0] * m[3] - m[2] * m[1];
+    Seed d;
+    d.p0 = seed.p0;
+    d.pa = -1;
+    d.pb = -1;
+    d.quality = seed.quality;
+    for (const auto& [i, o] : seed.patch) {
+      // o = x a' + y b': (x, y) = adj(m) o / det, kept when integral.
+      const int nx = m[3] * o.x() - m[2] * o.y(), ny = -m[1] * o.x() + m[0] * o.y();
+      if (nx % det != 0 || ny % det != 0) continue;
+      const Eigen::Vector2i l(nx / det, ny / det);
+      if (l == Eigen::Vector2i(1, 0)) d.pa = i;
+      if (l == Eigen::Vector2i(0, 1)) d.pb = i;
+      d.patch.push_back({i, l});
+    }
+    if (d.pa >= 0 && d.pb >= 0 && d.patch.size() >= 6) out.push_back(std::move(d));
+  }
+  return out;
 }
 
 // One refined explanation of some points by one source.
@@ -1435,16 +1479,27 @@ Result<IdentifyResult> IdentifySpots(const ModuleCalibration& calibration, const
   }
 
   const std::vector<Seed> seeds = FindSeeds(pool, options.neighbours, options.num_threads);
-  int tried = 0;
-  for (const Seed& seed : seeds) {
-    if (std::all_of(done.begin(), done.end(), [](char d) { return d != 0; })) break;
-    if (tried >= options.max_seeds) break;
+  int tried = 0, tried_derived = 0;
+  auto usable = [&](const Seed& seed) {
+    bool skip = pool.taken[seed.p0] || pool.taken[seed.pa] || pool.taken[seed.pb];
+    return !(skip || pool.blocked[seed.p0]);
+  };
+  // Adds d to `detections` unless one with the same correspondence is there
+  // (the one with more points, then the lower sigma, is kept).
+  auto add_to = [](std::vector<Detection>* detections, Detection d) {
+    for (Detection& e : *detections) {
+      if (SameCorrespondence(d, e)) {
+        if (d.point.size() > e.point.size() || (d.point.size() == e.point.size() && d.sigma < e.sigma)) {
+          e = std::move(d);
+        }
+        return;
+      }
+    }
+    detections->push_back(std::move(d));
+  };
+  // The refined detections of one seed (header comment, steps 2-3).
+  auto seed_detections = [&](const Seed& seed, std::vector<Detection>* out) {
     const int sp[3] = {seed.p0, seed.pa, seed.pb};
-    bool skip = false;
-    for (int i : sp) skip |= pool.taken[i];
-    skip |= pool.blocked[seed.p0];
-    if (skip) continue;
-    ++tried;
     std::vector<Identifier::Hypothesis> hypotheses;
     for (int s = 0; s < num_sources; ++s) {
       if (done[s]) continue;
@@ -1463,7 +1518,7 @@ Result<IdentifyResult> IdentifySpots(const ModuleCalibration& calibration, const
       settled = std::move(d);
       return true;
     });
-    if (candidates.empty()) continue;
+    if (candidates.empty()) return;
     // Best score first; among equal scores, by source, then in the order
     // each source's hypotheses were checked.
     std::stable_sort(candidates.begin(), candidates.end(), [](const Candidate& a, const Candidate& b) {
@@ -1485,18 +1540,7 @@ Result<IdentifyResult> IdentifySpots(const ModuleCalibration& calibration, const
       }
       if (!same) distinct.push_back(&c);
     }
-    std::vector<Detection> detections;
-    auto add = [&detections](Detection d) {
-      for (Detection& e : detections) {
-        if (SameCorrespondence(d, e)) {
-          if (d.point.size() > e.point.size() || (d.point.size() == e.point.size() && d.sigma < e.sigma)) {
-            e = std::move(d);
-          }
-          return;
-        }
-      }
-      detections.push_back(std::move(d));
-    };
+    auto add = [&](Detection d) { add_to(out, std::move(d)); };
     if (settled) {
       distinct.clear();
       add(std::move(*settled));
@@ -1511,7 +1555,39 @@ Result<IdentifyResult> IdentifySpots(const ModuleCalibration& calibration, const
       if (ok) add(std::move(d));
       if (clear) break;
     }
-    if (detections.empty()) continue;
+  };
+  auto clear = [&](const std::vector<Detection>& detections) {
+    for (const Detection& d : detections) {
+      if (d.sigma <= 0.25 * identifier.MaxSigma(d.source)) return true;
+    }
+    return false;
+  };
+  // One seed (header comment, steps 2-5): false when it explains nothing
+  // (no detection survives), true when it found a source or made one
+  // ambiguous. With `derived`, when the seed gives no clear detection (noise
+  // well below the acceptance limit), the detections of its derived crosses
+  // (DerivedSeeds; header comment, step 1) compete with its own: a cross
+  // mixing two interleaved grids can fit a wrong pose to a few dozen points
+  // of their union (a sheared or rotated lattice) that no other seed
+  // contradicts.
+  // `defer`: a decision on a detection that is not clear (noise above a
+  // quarter of the acceptance limit) is put off: the seed counts as
+  // explaining nothing and changes nothing (no point taken or blocked).
+  bool deferred_one = false;
+  auto try_seed = [&](const Seed& seed, bool derived, bool defer) -> bool {
+    deferred_one = false;
+    std::vector<Detection> detections;
+    seed_detections(seed, &detections);
+    if (derived && !clear(detections)) {
+      for (const Seed& d : DerivedSeeds(seed)) {
+        if (tried_derived >= options.max_seeds) break;
+        if (!usable(d)) continue;
+        ++tried_derived;
+        seed_detections(d, &detections);
+        if (clear(detections)) break;
+      }
+    }
+    if (detections.empty()) return false;
     // Common sigma: the smallest among the detections that explain nearly as
     // many points as the most; the best detection has the lowest cost.
     auto rank = [&]() {
@@ -1540,18 +1616,22 @@ Result<IdentifyResult> IdentifySpots(const ModuleCalibration& calibration, const
       const std::vector<Candidate> alternatives = identifier.Alternatives(detections[0], allowed);
       for (const Candidate& c : alternatives) {
         Detection d;
-        if (identifier.Refine(c, &d)) add(std::move(d));
+        if (identifier.Refine(c, &d)) add_to(&detections, std::move(d));
       }
     }
     detections.erase(std::remove_if(detections.begin(), detections.end(), against_prior),
                      detections.end());
     rank();
-    if (detections.empty()) continue;
+    if (detections.empty()) return false;
     size_t best = 0;
     for (size_t k = 1; k < detections.size(); ++k) {
       if (detections[k].cost < detections[best].cost) best = k;
     }
     const Detection& b = detections[best];
+    if (defer && !(b.sigma <= 0.25 * identifier.MaxSigma(b.source))) {
+      deferred_one = true;
+      return false;
+    }
     std::vector<size_t> rivals;
     for (size_t k = 0; k < detections.size(); ++k) {
       if (k != best && detections[k].cost - b.cost < options.ambiguity_chi2) rivals.push_back(k);
@@ -1573,7 +1653,7 @@ Result<IdentifyResult> IdentifySpots(const ModuleCalibration& calibration, const
       }
       out.rms_residual_rad = std::sqrt(ss / (2.0 * std::max<size_t>(1, b.point.size())));
       done[b.source] = 1;
-      continue;
+      return true;
     }
     // Ambiguous: say why, for every source involved.
     for (int i : b.point) pool.blocked[i] = 1;
@@ -1595,6 +1675,58 @@ Result<IdentifyResult> IdentifySpots(const ModuleCalibration& calibration, const
       ambiguity[b.source] = why.str();
       ambiguity[r.source] = why.str();
     }
+    return true;
+  };
+  auto all_done = [&done]() { return std::all_of(done.begin(), done.end(), [](char d) { return d != 0; }); };
+  // A detection that is not clear is decided only after kDeferrals such
+  // seeds: interleaved grids (spots of the other grid a fraction of a step
+  // away) can give a wrong pose of a whole grid whose noise, far above the
+  // spots', is still below the acceptance limit, while a later seed finds
+  // the grid clearly.
+  constexpr int kDeferrals = 16;
+  int deferrals = 0;
+  // The seeds of `list` in order, each counted in *counter (at most
+  // max_seeds); then, when a decision was put off and sources remain, the
+  // same seeds again deciding on every detection.
+  auto run = [&](const std::vector<Seed>& list, int* counter) {
+    for (int pass = 0; pass < 2; ++pass) {
+      if (pass == 1) {
+        if (deferrals == 0 || all_done()) break;
+        deferrals = kDeferrals;
+        *counter = 0;
+      }
+      for (const Seed& seed : list) {
+        if (all_done() || *counter >= options.max_seeds) break;
+        if (!usable(seed)) continue;
+        ++*counter;
+        try_seed(seed, true, deferrals < kDeferrals);
+        deferrals += deferred_one;
+      }
+    }
+  };
+  run(seeds, &tried);
+  // Sources still to find after a source was found: seeds again, from the
+  // points still free only (a grid interleaved with a found one: its
+  // points' crosses used the found grid's points), with a budget of
+  // max_seeds.
+  int reseeded = 0;
+  if (!all_done() && std::any_of(pool.taken.begin(), pool.taken.end(), [](char t) { return t != 0; })) {
+    Pool rest;
+    std::vector<int> back;
+    for (int i = 0; i < pool.size(); ++i) {
+      if (pool.taken[i]) continue;
+      rest.p.push_back(pool.p[i]);
+      back.push_back(i);
+    }
+    std::vector<Seed> more = FindSeeds(rest, options.neighbours, options.num_threads);
+    for (Seed& seed : more) {
+      seed.p0 = back[seed.p0];
+      seed.pa = back[seed.pa];
+      seed.pb = back[seed.pb];
+      for (auto& entry : seed.patch) entry.first = back[entry.first];
+    }
+    deferrals = 0;
+    run(more, &reseeded);
   }
 
   // Overlapping grids: a point assigned to one found source that also lies
@@ -1636,7 +1768,8 @@ Result<IdentifyResult> IdentifySpots(const ModuleCalibration& calibration, const
         out.detail = "no lattice-like group of points (a point with two pairs of opposite neighbours)";
       } else {
         out.detail = "no pose explains at least " + std::to_string(identifier.MinPoints(s)) + " points (" +
-                     std::to_string(tried) + " seeds tried)";
+                     std::to_string(tried) + " seeds tried, " + std::to_string(tried_derived) +
+                     " derived crosses, " + std::to_string(reseeded) + " seeds of the free points)";
       }
     }
   }

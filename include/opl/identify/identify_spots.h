@@ -20,7 +20,23 @@
 //  1. Seeds. For every point, its nearest neighbours in 3D; a seed is a point
 //     p0 with two pairs of opposite neighbours p0 +- a, p0 +- b (a local
 //     "cross" of the lattice) and its patch (the cross plus the points found
-//     at p0 +- a +- b, p0 +- 2a, p0 +- 2b); best supported first.
+//     at p0 +- a +- b, p0 +- 2a, p0 +- 2b, predicted to second order along
+//     each axis); best supported first.
+//     Interleaved grids (two grids of one pattern translated by about half
+//     a pitch, e.g. side-by-side sources on a wall) make crosses that mix
+//     both grids: every other point of an axis belongs to the other grid.
+//     Such a seed explains nothing, or fits a wrong pose to part of the
+//     union with a noise far above the spots'. Hence: the second-order
+//     prediction does not support a mixed axis (its bend alternates);
+//     when a seed gives no clear detection (noise below a quarter of the
+//     acceptance limit), the detections of its derived crosses (2a, b),
+//     (a, 2b) and (a + b, a - b), with the patch points on their lattice,
+//     compete with its own (budget: max_seeds more); a detection that is
+//     not clear is decided only after 16 seeds gave nothing clear (then
+//     the seeds run again deciding on everything); and when a source is
+//     found and others remain, seeds are computed again from the points
+//     still free (the other grid's own crosses used the found grid's
+//     points; budget: max_seeds more).
 //  2. Hypotheses. The patch is taken as lattice nodes L + g o (o its offsets,
 //     g one of the 8 symmetries of the square). The patch's pose at the
 //     central node gives a pose; every point is mapped through it to
@@ -128,7 +144,9 @@ struct IdentifyOptions {
   double ambiguity_chi2 = 25.0;
   // Neighbours examined per point when looking for seeds (3D nearest).
   int neighbours = 16;
-  // Seeds tried per round before giving up on the remaining sources.
+  // Seeds tried per round before giving up on the remaining sources; the
+  // derived crosses and the seeds of the free points (header comment,
+  // step 1) have budgets of as many again.
   int max_seeds = 400;
   // Candidate hypotheses refined per seed (the best by exact score).
   int max_refined = 8;

@@ -1,10 +1,13 @@
 #include "opl/pipeline/image_front_end.h"
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cmath>
 #include <filesystem>
+#include <map>
 #include <mutex>
+#include <optional>
 #include <set>
 #include <sstream>
 #include <thread>
@@ -193,37 +196,92 @@ std::string FrontEndResult::ToText() const {
   return out.str();
 }
 
-Result<FrontEndResult> RunImageFrontEnd(const Scene& scene, const std::string& images_dir,
-                                        const FrontEndOptions& options) {
-  OPL_RETURN_IF_ERROR(scene.Validate());
-  OPL_RETURN_IF_ERROR(options.Validate());
-  const int num_images = static_cast<int>(scene.shots.size());
-  if (num_images < 2) {
-    return Status::InvalidArgument("scene: " + std::to_string(num_images) +
-                                   " shot(s); at least two images are needed");
-  }
-  auto progress = [&](const std::string& stage, int done, int total) {
-    if (options.progress) options.progress(stage, done, total);
+namespace {
+
+// One run of the front end: its state between the stages, which
+// RunImageFrontEnd calls in order (the numbers of the header's steps).
+struct FrontEndRun {
+  struct TagObservationRef {
+    int image;
+    int tag;
+    int corner;
+  };
+  struct SpotObservationRef {
+    int image;
+    int spot;
   };
 
+  FrontEndRun(const Scene& scene_in, const std::string& images_dir_in,
+              const FrontEndOptions& options_in)
+      : scene(scene_in), images_dir(images_dir_in), options(options_in),
+        num_images(static_cast<int>(scene_in.shots.size())) {}
+
+  void progress(const std::string& stage, int done, int total) const {
+    if (options.progress) options.progress(stage, done, total);
+  }
+  void Init();
+  Status Detect();            // 1-2
+  Status PlaceCameras();      // 3, and the tags' bundle data
+  Status ChooseFrameTags();
+  Status AdjustTags();        // 4
+  void GroupShots();          // 5: the exposure groups
+  Status MatchGroups();       // 5: matching, into the bundle
+  Status AdjustAll();         // 6
+  // The variance components after pass `pass`; true: run 5-6 again.
+  bool EstimateVarianceComponents(int pass);
+  Status MatchAndAdjust();    // 5-6 with the variance components
+  void PerImageRms();
+  Status MoveToSceneFrame();  // 7
+
+  const Scene& scene;
+  const std::string& images_dir;
+  const FrontEndOptions& options;
+  const int num_images;
+  int threads = 1;
   FrontEndResult result;
+  std::vector<CameraIntrinsics> intrinsics;
+  std::vector<ImageData> data;
+  std::optional<TagPoses> poses;
+  BundleData bundle;
+  std::vector<int> camera_of_image;
+  std::map<int, int> first_corner_point;  // tag id -> index of its corner 0
+  std::vector<TagObservationRef> tag_refs;
+  std::array<int, 3> frame_tags = {-1, -1, -1};
+  BundleOptions bundle_options;
+  int num_tag_observations = 0;
+  BundleData tag_bundle;  // after step 4
+  std::vector<SpotObservationRef> spot_refs;
+  std::vector<int> spot_group;
+  int first_spot_point = 0;
+  Result<BundleResult> adjusted = Status::NoSolution("not run");
+  // Variance components added to the spots' and the tag corners' pixel
+  // covariances [px^2], and the spots' variance factor of the last pass.
+  double spot_extra_var_px2 = 0.0;
+  double tag_extra_var_px2 = 0.0;
+  double last_spot_variance_factor = 1.0;
+  double spot_point_scale = 1.0;  // a posteriori, on the 3D spot covariances
+};
+
+void FrontEndRun::Init() {
+  intrinsics.resize(static_cast<size_t>(num_images));
   result.images.resize(static_cast<size_t>(num_images));
-  std::vector<CameraIntrinsics> intrinsics(static_cast<size_t>(num_images));
   for (int i = 0; i < num_images; ++i) {
     const SceneShot& shot = scene.shots[static_cast<size_t>(i)];
     intrinsics[static_cast<size_t>(i)] = scene.FindCamera(shot.camera)->intrinsics;
     result.images[static_cast<size_t>(i)].file = shot.file;
     result.images[static_cast<size_t>(i)].camera = shot.camera;
   }
+}
 
+Status FrontEndRun::Detect() {
   // 1-2. Read and detect, in parallel; the first error (in shot order) wins.
-  std::vector<ImageData> data(static_cast<size_t>(num_images));
+  data.assign(static_cast<size_t>(num_images), ImageData());
   std::vector<Status> errors(static_cast<size_t>(num_images));
   std::mutex progress_mutex;
   std::atomic<int> done{0};
-  const int threads = options.num_threads > 0
-                          ? options.num_threads
-                          : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  threads = options.num_threads > 0
+                ? options.num_threads
+                : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   RunParallel(num_images, threads, [&](int i) {
     const SceneShot& shot = scene.shots[static_cast<size_t>(i)];
     const std::string path = (std::filesystem::path(images_dir) / shot.file).string();
@@ -269,21 +327,24 @@ Result<FrontEndResult> RunImageFrontEnd(const Scene& scene, const std::string& i
     return Status::NoSolution("no tag (tag36h11) was found in any of the " +
                               std::to_string(num_images) + " images");
   }
+  return Status::Ok();
+}
 
+Status FrontEndRun::PlaceCameras() {
   // 3. Start poses.
   std::vector<std::vector<TagDetection>> tags_per_image;
   for (const ImageData& d : data) tags_per_image.push_back(d.tags);
   TagPoseOptions pose_options;
   pose_options.tag_size = scene.tags.size_mm;
-  Result<TagPoses> poses = PosesFromTags(intrinsics, tags_per_image, pose_options);
-  if (!poses.ok()) return poses.status();
+  Result<TagPoses> found_poses = PosesFromTags(intrinsics, tags_per_image, pose_options);
+  if (!found_poses.ok()) return found_poses.status();
+  poses = std::move(*found_poses);
   progress("poses", 1, 1);
   for (const std::string& w : poses->warnings) result.warnings.push_back("start poses: " + w);
 
   // Bundle data: one intrinsics entry per image (held), one pose per placed
   // image, four corner points per placed tag.
-  BundleData bundle;
-  std::vector<int> camera_of_image(static_cast<size_t>(num_images), -1);
+  camera_of_image.assign(static_cast<size_t>(num_images), -1);
   for (int i = 0; i < num_images; ++i) {
     const auto& pose = poses->cam_from_scene[static_cast<size_t>(i)];
     if (!pose) {
@@ -301,7 +362,6 @@ Result<FrontEndResult> RunImageFrontEnd(const Scene& scene, const std::string& i
     camera.cam_from_scene = *pose;
     bundle.cameras.push_back(camera);
   }
-  std::map<int, int> first_corner_point;  // tag id -> index of its corner 0
   const auto corners_in_tag = TagCornersInTag(scene.tags.size_mm);
   for (const auto& [id, scene_from_tag] : poses->scene_from_tag) {
     first_corner_point[id] = static_cast<int>(bundle.points.size());
@@ -311,12 +371,6 @@ Result<FrontEndResult> RunImageFrontEnd(const Scene& scene, const std::string& i
       bundle.points.push_back(p);
     }
   }
-  struct TagObservationRef {
-    int image;
-    int tag;
-    int corner;
-  };
-  std::vector<TagObservationRef> tag_refs;
   for (int i = 0; i < num_images; ++i) {
     const int camera = camera_of_image[static_cast<size_t>(i)];
     if (camera < 0) continue;
@@ -359,9 +413,11 @@ Result<FrontEndResult> RunImageFrontEnd(const Scene& scene, const std::string& i
     bundle.observations = std::move(kept);
     tag_refs = std::move(kept_refs);
   }
+  return Status::Ok();
+}
 
+Status FrontEndRun::ChooseFrameTags() {
   // The frame's tags.
-  std::array<int, 3> frame_tags = {-1, -1, -1};
   if (scene.frame) {
     frame_tags = {scene.frame->origin_tag, scene.frame->axis_tag, scene.frame->plane_tag};
     const char* role[3] = {"origin", "axis", "plane"};
@@ -398,9 +454,13 @@ Result<FrontEndResult> RunImageFrontEnd(const Scene& scene, const std::string& i
     }
   }
   result.frame_tags = frame_tags;
-  BundleOptions bundle_options;
+  return Status::Ok();
+}
+
+Status FrontEndRun::AdjustTags() {
   bundle_options.num_threads = threads;
   bundle_options.gauge = BundleGauge::kFixedByCaller;
+
 
   // 4. Tags only, the gauge held by the reference tag's corners (the frame
   // and the scale of the start poses).
@@ -463,9 +523,12 @@ Result<FrontEndResult> RunImageFrontEnd(const Scene& scene, const std::string& i
     for (auto& [id, first] : first_corner_point) first = new_index[static_cast<size_t>(first)];
     bundle.points = std::move(points);
   }
-  const int num_tag_observations = static_cast<int>(bundle.observations.size());
-  const BundleData tag_bundle = bundle;
+  num_tag_observations = static_cast<int>(bundle.observations.size());
+  tag_bundle = bundle;
+  return Status::Ok();
+}
 
+void FrontEndRun::GroupShots() {
   // 5. Groups and matching.
   {
     std::map<std::pair<std::vector<std::string>, int>, int> group_of_key;
@@ -482,21 +545,9 @@ Result<FrontEndResult> RunImageFrontEnd(const Scene& scene, const std::string& i
       result.groups[static_cast<size_t>(found->second)].images.push_back(i);
     }
   }
-  struct SpotObservationRef {
-    int image;
-    int spot;
-  };
-  std::vector<SpotObservationRef> spot_refs;
-  std::vector<int> spot_group;
-  int first_spot_point = 0;
-  Result<BundleResult> adjusted = Status::NoSolution("not run");
-  // 5-6 run twice when the spots' residuals show that the detector's
-  // covariances are too small (speckle): the second pass matches and adjusts
-  // with the covariances scaled by the spots' variance factor.
-  double spot_extra_var_px2 = 0.0;
-  double tag_extra_var_px2 = 0.0;
-  double last_spot_variance_factor = 1.0;
-  for (int pass = 0; pass < 2; ++pass) {
+}
+
+Status FrontEndRun::MatchGroups() {
   bundle = tag_bundle;
   for (int k = 0; k < num_tag_observations; ++k) {
     bundle.observations[static_cast<size_t>(k)].covariance_px2 +=
@@ -562,7 +613,10 @@ Result<FrontEndResult> RunImageFrontEnd(const Scene& scene, const std::string& i
     }
     progress("match", static_cast<int>(g) + 1, static_cast<int>(result.groups.size()));
   }
+  return Status::Ok();
+}
 
+Status FrontEndRun::AdjustAll() {
   // 6. Everything together, in the datum of the frame tags' first corners.
   // The spot points follow the tag corners.
   first_spot_point = static_cast<int>(bundle.points.size()) -
@@ -578,6 +632,10 @@ Result<FrontEndResult> RunImageFrontEnd(const Scene& scene, const std::string& i
     return Status::NoSolution("bundle adjustment of tags and spots: " +
                               adjusted.status().message());
   }
+  return Status::Ok();
+}
+
+bool FrontEndRun::EstimateVarianceComponents(int pass) {
   // The spots' variance factor: their chi^2 over their redundancy (2 per
   // observation - 3 per point; the cameras are held by the tags).
   std::vector<Eigen::Vector2d> spot_residuals;
@@ -625,7 +683,7 @@ Result<FrontEndResult> RunImageFrontEnd(const Scene& scene, const std::string& i
   last_spot_variance_factor = spot_variance_factor;
   const bool spots_off = spot_variance_factor > options.max_spot_variance_factor;
   const bool tags_off = tag_variance_factor > options.max_spot_variance_factor;
-  if (pass > 0 || !options.rescale_spot_covariances || !(spots_off || tags_off)) break;
+  if (pass > 0 || !options.rescale_spot_covariances || !(spots_off || tags_off)) return false;
   if (spots_off) {
     spot_extra_var_px2 = ExtraVarianceForUnitFactor(spot_residuals, spot_covariances, redundancy);
     result.spot_extra_sigma_px = std::sqrt(spot_extra_var_px2);
@@ -634,18 +692,32 @@ Result<FrontEndResult> RunImageFrontEnd(const Scene& scene, const std::string& i
     tag_extra_var_px2 = ExtraVarianceForUnitFactor(tag_residuals, tag_covariances, tag_redundancy);
     result.tag_extra_sigma_px = std::sqrt(tag_extra_var_px2);
   }
-  }  // passes
+  return true;
+}
+
+// 5-6 run twice when the residuals show that the detector's covariances
+// are too small (speckle): the second pass matches and adjusts with the
+// variance components added.
+Status FrontEndRun::MatchAndAdjust() {
+  for (int pass = 0; pass < 2; ++pass) {
+    OPL_RETURN_IF_ERROR(MatchGroups());
+    OPL_RETURN_IF_ERROR(AdjustAll());
+    if (!EstimateVarianceComponents(pass)) break;
+  }
   // What the last pass still shows (the rematch adds back detections with
   // larger errors, which the first pass had rejected) scales the spots' 3D
   // covariances a posteriori, so that u(s) follows the observed scatter.
-  const double spot_point_scale =
+  spot_point_scale =
       options.rescale_spot_covariances ? std::max(1.0, last_spot_variance_factor) : 1.0;
   result.spot_point_covariance_scale = spot_point_scale;
   progress("adjust all", 1, 1);
   result.rms_reprojection_px = adjusted->rms_reprojection_px;
   result.variance_factor = adjusted->variance_factor;
   result.bundle_report = adjusted->Report();
+  return Status::Ok();
+}
 
+void FrontEndRun::PerImageRms() {
   // Per-image RMS of tags and spots.
   {
     std::vector<double> tag_sum(static_cast<size_t>(num_images), 0.0);
@@ -681,7 +753,9 @@ Result<FrontEndResult> RunImageFrontEnd(const Scene& scene, const std::string& i
           spot_n[i] ? std::sqrt(spot_sum[i] / (2.0 * spot_n[i])) : 0.0;
     }
   }
+}
 
+Status FrontEndRun::MoveToSceneFrame() {
   // 7. The frame of the tag centres.
   auto center_of = [&](int id, Eigen::Matrix3d* covariance) {
     Eigen::Vector3d c = Eigen::Vector3d::Zero();
@@ -733,7 +807,31 @@ Result<FrontEndResult> RunImageFrontEnd(const Scene& scene, const std::string& i
     c.cam_from_scene = CamFromNewScene(c.cam_from_scene, *frame, 1.0);
     result.cameras[static_cast<size_t>(i)] = c;
   }
-  return result;
+  return Status::Ok();
+}
+
+}  // namespace
+
+Result<FrontEndResult> RunImageFrontEnd(const Scene& scene, const std::string& images_dir,
+                                        const FrontEndOptions& options) {
+  OPL_RETURN_IF_ERROR(scene.Validate());
+  OPL_RETURN_IF_ERROR(options.Validate());
+  const int num_images = static_cast<int>(scene.shots.size());
+  if (num_images < 2) {
+    return Status::InvalidArgument("scene: " + std::to_string(num_images) +
+                                   " shot(s); at least two images are needed");
+  }
+  FrontEndRun run(scene, images_dir, options);
+  run.Init();
+  OPL_RETURN_IF_ERROR(run.Detect());
+  OPL_RETURN_IF_ERROR(run.PlaceCameras());
+  OPL_RETURN_IF_ERROR(run.ChooseFrameTags());
+  OPL_RETURN_IF_ERROR(run.AdjustTags());
+  run.GroupShots();
+  OPL_RETURN_IF_ERROR(run.MatchAndAdjust());
+  run.PerImageRms();
+  OPL_RETURN_IF_ERROR(run.MoveToSceneFrame());
+  return std::move(run.result);
 }
 
 }  // namespace opl

@@ -638,19 +638,24 @@ Status FrontEndRun::AdjustAll() {
 bool FrontEndRun::EstimateVarianceComponents(int pass) {
   // The spots' variance factor: their chi^2 over their redundancy (2 per
   // observation - 3 per point; the cameras are held by the tags).
+  // Residuals and covariances of the observations [first, last).
+  auto residuals_of = [&](size_t first, size_t last, std::vector<Eigen::Vector2d>* residuals,
+                          std::vector<Eigen::Matrix2d>* covariances) {
+    for (size_t k = first; k < last; ++k) {
+      const BundleObservation& ob = adjusted->data.observations[k];
+      Eigen::Vector2d px;
+      if (!adjusted->data.CameraAt(ob.camera).Project(
+              adjusted->data.points[static_cast<size_t>(ob.point)].point_in_scene, &px)) {
+        continue;
+      }
+      residuals->push_back(px - ob.pixel_px);
+      covariances->push_back(ob.covariance_px2);
+    }
+  };
+  const size_t num_tag = static_cast<size_t>(num_tag_observations);
   std::vector<Eigen::Vector2d> spot_residuals;
   std::vector<Eigen::Matrix2d> spot_covariances;
-  for (size_t k = static_cast<size_t>(num_tag_observations);
-       k < adjusted->data.observations.size(); ++k) {
-    const BundleObservation& ob = adjusted->data.observations[k];
-    Eigen::Vector2d px;
-    if (!adjusted->data.CameraAt(ob.camera).Project(
-            adjusted->data.points[static_cast<size_t>(ob.point)].point_in_scene, &px)) {
-      continue;
-    }
-    spot_residuals.push_back(px - ob.pixel_px);
-    spot_covariances.push_back(ob.covariance_px2);
-  }
+  residuals_of(num_tag, adjusted->data.observations.size(), &spot_residuals, &spot_covariances);
   const int redundancy = 2 * static_cast<int>(spot_residuals.size()) -
                          3 * static_cast<int>(spot_group.size());
   const double spot_variance_factor =
@@ -660,16 +665,7 @@ bool FrontEndRun::EstimateVarianceComponents(int pass) {
   // camera + 7 (the datum).
   std::vector<Eigen::Vector2d> tag_residuals;
   std::vector<Eigen::Matrix2d> tag_covariances;
-  for (int k = 0; k < num_tag_observations; ++k) {
-    const BundleObservation& ob = adjusted->data.observations[static_cast<size_t>(k)];
-    Eigen::Vector2d px;
-    if (!adjusted->data.CameraAt(ob.camera).Project(
-            adjusted->data.points[static_cast<size_t>(ob.point)].point_in_scene, &px)) {
-      continue;
-    }
-    tag_residuals.push_back(px - ob.pixel_px);
-    tag_covariances.push_back(ob.covariance_px2);
-  }
+  residuals_of(0, num_tag, &tag_residuals, &tag_covariances);
   const int tag_redundancy = 2 * static_cast<int>(tag_residuals.size()) -
                              3 * first_spot_point - 6 * static_cast<int>(bundle.cameras.size()) + 7;
   const double tag_variance_factor =

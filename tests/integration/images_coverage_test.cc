@@ -79,7 +79,7 @@ struct SceneOutcome {
   int points = 0;       // identified spots in the truth fit
   double fit_rms_mm = 0.0;
   double spot_variance_factor = 0.0;   // front end, first adjustment
-  double spot_covariance_scale = 1.0;
+  double spot_extra_sigma_px = 0.0;
   double tag_variance_factor = 0.0, tag_extra_sigma_px = 0.0;
   std::vector<double> locate_variance_factor;  // per located source
   double u_shared = 0.0;  // part of u shared by the spots (cameras, datum)  // front end: factor applied
@@ -162,7 +162,7 @@ SceneOutcome MeasureSeed(const Scene& base, uint64_t seed) {
   out.u = report->measure.scale.u_scale_factor;
   out.z = (out.s - out.s_true) / out.u;
   out.spot_variance_factor = report->front_end.spot_variance_factor;
-  out.spot_covariance_scale = report->front_end.spot_extra_sigma_px;
+  out.spot_extra_sigma_px = report->front_end.spot_extra_sigma_px;
   out.final_variance_factor = report->front_end.variance_factor;
   out.tag_variance_factor = report->front_end.tag_variance_factor;
   out.u_shared = report->u_scale_factor_shared;
@@ -193,7 +193,7 @@ const std::vector<SceneOutcome>& Outcomes() {
                 << FormatNumber(o.z, 3) << ", " << o.points << " spots, fit rms "
                 << FormatNumber(o.fit_rms_mm, 3) << " mm, spot variance factor "
                 << FormatNumber(o.spot_variance_factor, 3) << " (extra sigma px "
-                << FormatNumber(o.spot_covariance_scale, 3) << "; tags " << FormatNumber(o.tag_variance_factor, 3) << ", extra "
+                << FormatNumber(o.spot_extra_sigma_px, 3) << "; tags " << FormatNumber(o.tag_variance_factor, 3) << ", extra "
                 << FormatNumber(o.tag_extra_sigma_px, 3) << " px; locate chi2/dof";
       for (double v : o.locate_variance_factor) std::cout << " " << FormatNumber(v, 3);
       std::cout << "; final adjustment "

@@ -45,6 +45,17 @@ Scene SmallScene() {
   return std::move(scene).value();
 }
 
+// The same, noise-free: no sensor noise, no speckle, 16 bit (no visible
+// quantisation).
+Scene NoiseFreeSmallScene() {
+  Scene scene = SmallScene();
+  scene.image.read_noise = 0.0;
+  scene.image.gain_e_per_dn = 0.0;
+  scene.image.bit_depth = 16;
+  scene.spots.speckle_contrast = 0.0;
+  return scene;
+}
+
 // The true scale of the measured frame (mm per scene unit): the similarity
 // that maps the identified spots onto their true points.
 struct TruthFit {
@@ -84,12 +95,7 @@ TruthFit FitToTruth(const ImageMeasureReport& report, const SceneRenderer& truth
 }
 
 TEST(MeasureScaleFromImages, NoiseFreeRenderGivesTheTrueScale) {
-  Scene scene = SmallScene();
-  // Noise-free: no sensor noise, no speckle, 16 bit (no visible quantisation).
-  scene.image.read_noise = 0.0;
-  scene.image.gain_e_per_dn = 0.0;
-  scene.image.bit_depth = 16;
-  scene.spots.speckle_contrast = 0.0;
+  Scene scene = NoiseFreeSmallScene();
   const std::filesystem::path dir = FreshTempDir("measure_images_clean");
   const SceneRenderer truth = RenderAll(scene, dir);
   Result<ModuleCalibration> calibration = ExactCalibration(*scene.module);
@@ -159,11 +165,7 @@ TEST(MeasureScaleFromImages, NoiseFreeRenderGivesTheTrueScale) {
 // wall (55 mm apart at a ~101 mm pitch), are matched as one exposure group
 // and told apart by the identification alone. Noise-free render.
 TEST(MeasureScaleFromImages, BothGridsInOneImage) {
-  Scene scene = SmallScene();
-  scene.image.read_noise = 0.0;
-  scene.image.gain_e_per_dn = 0.0;
-  scene.image.bit_depth = 16;
-  scene.spots.speckle_contrast = 0.0;
+  Scene scene = NoiseFreeSmallScene();
   std::vector<SceneShot> shots;
   for (const SceneShot& shot : scene.shots) {
     if (shot.lasers != std::vector<std::string>{"A"}) continue;

@@ -71,6 +71,10 @@ std::string ImageMeasureReport::ToJson() const {
   doc["frame_tags"] = front_end.frame_tags;
   doc["rms_reprojection_px"] = front_end.rms_reprojection_px;
   doc["variance_factor"] = front_end.variance_factor;
+  doc["spot_variance_factor"] = front_end.spot_variance_factor;
+  doc["spot_extra_sigma_px"] = front_end.spot_extra_sigma_px;
+  doc["tag_variance_factor"] = front_end.tag_variance_factor;
+  doc["tag_extra_sigma_px"] = front_end.tag_extra_sigma_px;
   doc["u_scale_factor_own"] = u_scale_factor_own;
   doc["u_scale_factor_shared"] = u_scale_factor_shared;
   doc["warnings"] = front_end.warnings;

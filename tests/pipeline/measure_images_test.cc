@@ -19,6 +19,7 @@
 
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
 #include "opl/io/scene_json.h"
@@ -157,6 +158,14 @@ TEST(MeasureScaleFromImages, NoiseFreeRenderGivesTheTrueScale) {
             << " (" << report->shared_components << " components); Monte Carlo of the shared part "
             << mc_std << "\n";
   EXPECT_NEAR(mc_std / report->u_scale_factor_shared, 1.0, 0.15);
+  // The JSON report carries both parts and the variance components.
+  const nlohmann::json doc = nlohmann::json::parse(report->ToJson());
+  EXPECT_DOUBLE_EQ(doc.at("u_scale_factor_shared").get<double>(), report->u_scale_factor_shared);
+  EXPECT_DOUBLE_EQ(doc.at("u_scale_factor_own").get<double>(), report->u_scale_factor_own);
+  EXPECT_DOUBLE_EQ(doc.at("tag_variance_factor").get<double>(),
+                   report->front_end.tag_variance_factor);
+  EXPECT_DOUBLE_EQ(doc.at("spot_extra_sigma_px").get<double>(),
+                   report->front_end.spot_extra_sigma_px);
   std::filesystem::remove_all(dir);
 }
 

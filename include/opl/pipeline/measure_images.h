@@ -81,8 +81,9 @@ struct ImageMeasureReport {
   std::string ToText() const;
   // {"format": "opl.image_measure_report", "version": 1, "images": [...],
   //  "exposure_groups": [...], "frame_tags": [...], "rms_reprojection_px",
-//  "variance_factor", "u_scale_factor_own", "u_scale_factor_shared",
-  //  "warnings",
+  //  "variance_factor", "spot_variance_factor", "spot_extra_sigma_px",
+  //  "tag_variance_factor", "tag_extra_sigma_px", "u_scale_factor_own",
+  //  "u_scale_factor_shared", "warnings",
   //  "measure": <the measure report JSON>, "metadata_conflicts": [...]}.
   std::string ToJson() const;
 };

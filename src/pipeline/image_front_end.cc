@@ -216,7 +216,7 @@ struct FrontEndRun {
       : scene(scene_in), images_dir(images_dir_in), options(options_in),
         num_images(static_cast<int>(scene_in.shots.size())) {}
 
-  void progress(const std::string& stage, int done, int total) const {
+  void Progress(const std::string& stage, int done, int total) const {
     if (options.progress) options.progress(stage, done, total);
   }
   void Init();
@@ -312,7 +312,7 @@ Status FrontEndRun::Detect() {
       if (!in_tag) d.spots.push_back(s);
     }
     std::lock_guard<std::mutex> lock(progress_mutex);
-    progress("detect", ++done, num_images);
+    Progress("detect", ++done, num_images);
   });
   for (const Status& e : errors) OPL_RETURN_IF_ERROR(e);
   int images_with_tags = 0;
@@ -339,7 +339,7 @@ Status FrontEndRun::PlaceCameras() {
   Result<TagPoses> found_poses = PosesFromTags(intrinsics, tags_per_image, pose_options);
   if (!found_poses.ok()) return found_poses.status();
   poses = std::move(*found_poses);
-  progress("poses", 1, 1);
+  Progress("poses", 1, 1);
   for (const std::string& w : poses->warnings) result.warnings.push_back("start poses: " + w);
 
   // Bundle data: one intrinsics entry per image (held), one pose per placed
@@ -506,7 +506,7 @@ Status FrontEndRun::AdjustTags() {
     }
     bundle.observations = std::move(kept);
   }
-  progress("adjust tags", 1, 1);
+  Progress("adjust tags", 1, 1);
   // Unobserved (constant) tag points would break the datum of the final
   // adjustment: remove them.
   {
@@ -611,7 +611,7 @@ Status FrontEndRun::MatchGroups() {
         ++result.images[static_cast<size_t>(image)].spots_matched;
       }
     }
-    progress("match", static_cast<int>(g) + 1, static_cast<int>(result.groups.size()));
+    Progress("match", static_cast<int>(g) + 1, static_cast<int>(result.groups.size()));
   }
   return Status::Ok();
 }
@@ -706,7 +706,7 @@ Status FrontEndRun::MatchAndAdjust() {
   spot_point_scale =
       options.rescale_spot_covariances ? std::max(1.0, last_spot_variance_factor) : 1.0;
   result.spot_point_covariance_scale = spot_point_scale;
-  progress("adjust all", 1, 1);
+  Progress("adjust all", 1, 1);
   result.rms_reprojection_px = adjusted->rms_reprojection_px;
   result.variance_factor = adjusted->variance_factor;
   result.bundle_report = adjusted->Report();

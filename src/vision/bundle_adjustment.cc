@@ -584,20 +584,22 @@ Result<BundleResult> BundleAdjust(const BundleData& data, const BundleOptions& o
           }
           result.point_covariances[j] = F * cov * F.transpose();
           Eigen::MatrixXd& K = result.point_shared_factors[j];
-          Eigen::Matrix3d own_j = F.rightCols<3>();
+          // d F / d e_j: how the point's own error reaches it (0 for a datum
+          // point, whose own error is one of the shared ones).
+          Eigen::Matrix3d F_own = F.rightCols<3>();
           Eigen::MatrixXd camera_part = Eigen::MatrixXd::Zero(3, nc);
           if (nc > 0) camera_part = F.rightCols<3>() * W[j];
           for (size_t r = 0; r < 3; ++r) {
             Eigen::Matrix3d Fr = F.block<3, 3>(0, static_cast<Eigen::Index>(3 * r));
             if (abc[r] == j) {  // a datum point: its own error is the shared one
               Fr += F.rightCols<3>();
-              own_j.setZero();
+              F_own.setZero();
             }
             K.block<3, 3>(0, static_cast<Eigen::Index>(3 * r)) = Fr * chol_abc[r];
             if (nc > 0) camera_part += F.block<3, 3>(0, static_cast<Eigen::Index>(3 * r)) * W[abc[r]];
           }
           if (nc > 0) K.rightCols(nc) = camera_part * Lg;
-          result.point_own_covariances[j] = own_j * Dinv[j] * own_j.transpose();
+          result.point_own_covariances[j] = F_own * Dinv[j] * F_own.transpose();
         }
         result.covariance_method =
             "first order, Schur complement of J^T J, pseudo-inverse over the 7-dof gauge, "

@@ -133,6 +133,19 @@ Result<ImageMeasureReport> MeasureScaleFromImages(const Scene& scene,
                                                     std::to_string(g) + ": " +
                                                     identified.status().message());
     }
+    // A source whose laser was off in this group's shots was not looked for
+    // (one laser on: every spot carries that source) or, with several on,
+    // not expected: say so instead of a bare "not found".
+    if (!group.lasers.empty()) {
+      for (IdentifiedSource& s : identified->sources) {
+        if (s.outcome != IdentifyOutcome::kNotFound ||
+            std::find(group.lasers.begin(), group.lasers.end(), s.name) != group.lasers.end()) {
+          continue;
+        }
+        s.detail = group.lasers.size() == 1 ? "laser off in these shots: not searched"
+                                            : "laser off in these shots";
+      }
+    }
     for (size_t i = 0; i < members.size(); ++i) {
       const int source = identified->source_index[i];
       if (source < 0) continue;

@@ -6,6 +6,7 @@
 #include <random>
 #include <utility>
 
+#include <Eigen/Eigenvalues>
 #include <nlohmann/json.hpp>
 
 #include "opl/core/format.h"
@@ -34,6 +35,8 @@ struct SourceSetup {
   Rigid3d pose;
   Eigen::Vector3d angles = Eigen::Vector3d::Zero();
   std::vector<SpotObservation> truth;  // noise-free, carrying Sigma
+  // Per spot, F with F F^T its noise covariance (F z, z ~ N(0, I)).
+  std::vector<Eigen::Matrix3d> noise_factor;
 };
 
 // What one iteration produced.
@@ -50,11 +53,26 @@ struct Problem {
   const std::vector<SourceSetup>* sources = nullptr;
   const ModuleCalibration* calibration = nullptr;
   std::vector<std::pair<std::string, std::string>> pairs;
-  Eigen::Matrix3d noise_factor = Eigen::Matrix3d::Zero();  // R_n diag(sigma)
   LocateOptions locate;
   bool start_from_design_pose = true;
   uint64_t seed = 0;
 };
+
+// The symmetric square root of a covariance (F = V sqrt(L) V^T, F F^T = C):
+// unlike a Cholesky factor it keeps every direction's noise in that
+// direction, and it allows a semi-definite C.
+Result<Eigen::Matrix3d> SymmetricSquareRoot(const Eigen::Matrix3d& c) {
+  if (!c.allFinite()) return Status::InvalidArgument("not finite");
+  if (!c.isApprox(c.transpose(), 1e-9)) return Status::InvalidArgument("not symmetric");
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(0.5 * (c + c.transpose()));
+  const Eigen::Vector3d l = eig.eigenvalues();
+  if (l.minCoeff() < -1e-12 * std::max(1.0, l.maxCoeff())) {
+    return Status::InvalidArgument("not positive semi-definite (eigenvalue " +
+                                   FormatNumber(l.minCoeff()) + ")");
+  }
+  return Eigen::Matrix3d(eig.eigenvectors() * l.cwiseMax(0.0).cwiseSqrt().asDiagonal() *
+                         eig.eigenvectors().transpose());
+}
 
 IterationResult RunIteration(const Problem& problem, int iteration) {
   IterationResult result;
@@ -70,10 +88,10 @@ IterationResult RunIteration(const Problem& problem, int iteration) {
   std::vector<SpotObservation> spots;
   for (const SourceSetup& source : sources) {
     spots = source.truth;
-    for (SpotObservation& spot : spots) {
+    for (size_t i = 0; i < spots.size(); ++i) {
       Eigen::Vector3d z;
       for (int k = 0; k < 3; ++k) z[k] = normal(rng);
-      spot.point_in_scene += problem.noise_factor * z;
+      spots[i].point_in_scene += source.noise_factor[i] * z;
     }
     if (problem.start_from_design_pose) locate.initial_scene_from_source = source.pose;
     Result<LocateResult> r = LocateSource(source.pattern, spots, locate);
@@ -170,8 +188,10 @@ Result<MonteCarloReport> RunMeasurementMonteCarlo(const ModuleDesign& design,
     return Status::NoSolution("the design has " + std::to_string(design.sources.size()) +
                               " source: a length needs two");
   }
-  const Eigen::Matrix3d sigma = design.SpotCovarianceMm2();
-  if (!(design.spot_noise_mm.array() > 0.0).any()) {
+  const bool per_spot = static_cast<bool>(options.spot_covariance_mm2);
+  const Eigen::Matrix3d design_sigma = design.SpotCovarianceMm2();
+  const Eigen::Matrix3d design_factor = design.noise_frame_rotation * design.spot_noise_mm.asDiagonal();
+  if (!per_spot && !(design.spot_noise_mm.array() > 0.0).any()) {
     return Status::InvalidArgument("spot_noise_mm is zero on every axis: nothing to simulate");
   }
   Result<ModuleCalibration> calibration = ExactCalibration(design);
@@ -195,8 +215,21 @@ Result<MonteCarloReport> RunMeasurementMonteCarlo(const ModuleDesign& design,
       SpotObservation o;
       o.beam_id = spot.spot.observation.beam_id;
       o.point_in_scene = spot.true_point_in_scene;
+      Eigen::Matrix3d sigma = design_sigma;
+      Eigen::Matrix3d factor = design_factor;
+      if (per_spot) {
+        sigma = options.spot_covariance_mm2(d.name, o.beam_id, o.point_in_scene);
+        Result<Eigen::Matrix3d> root = SymmetricSquareRoot(sigma);
+        if (!root.ok()) {
+          return Status::InvalidArgument("spot_covariance_mm2 of source '" + d.name + "' beam " +
+                                         std::to_string(o.beam_id) + ": " +
+                                         root.status().message());
+        }
+        factor = *root;
+      }
       if (options.weighting == SpotWeighting::kEfficient) o.cov_in_scene = sigma;
       s.truth.push_back(o);
+      s.noise_factor.push_back(factor);
     }
     if (s.truth.empty()) {
       return Status::NoSolution("source '" + d.name + "': no beam hits the surface (" +
@@ -209,7 +242,8 @@ Result<MonteCarloReport> RunMeasurementMonteCarlo(const ModuleDesign& design,
   report.iterations = options.iterations;
   report.seed = options.seed;
   report.coverage_probability = options.coverage_probability;
-  report.spot_noise_mm = design.spot_noise_mm;
+  report.spot_noise_mm = per_spot ? Eigen::Vector3d::Zero() : Eigen::Vector3d(design.spot_noise_mm);
+  report.per_spot_noise = per_spot;
   report.weighting = options.weighting;
 
   // First order: the noise-free spots with Sigma attached.
@@ -219,7 +253,6 @@ Result<MonteCarloReport> RunMeasurementMonteCarlo(const ModuleDesign& design,
   problem.locate = options.locate;
   problem.start_from_design_pose = options.start_from_design_pose;
   problem.seed = options.seed;
-  problem.noise_factor = design.noise_frame_rotation * design.spot_noise_mm.asDiagonal();
   std::vector<LocatedOrigin> located;
   std::vector<LocatedOrigin> bound;
   for (const SourceSetup& s : sources) {
@@ -232,9 +265,9 @@ Result<MonteCarloReport> RunMeasurementMonteCarlo(const ModuleDesign& design,
     }
     SourceSpotGeometry geometry;
     geometry.scene_from_source = s.pose;
-    for (const SpotObservation& spot : s.truth) {
-      geometry.points_in_scene.push_back(spot.point_in_scene);
-      geometry.covariances.push_back(sigma);
+    for (size_t i = 0; i < s.truth.size(); ++i) {
+      geometry.points_in_scene.push_back(s.truth[i].point_in_scene);
+      geometry.covariances.push_back(s.noise_factor[i] * s.noise_factor[i].transpose());
     }
     Result<Eigen::Matrix<double, 6, 6>> crb = PoseCramerRaoBound(geometry);
     if (!crb.ok()) return Status::NoSolution("source '" + s.name + "': " + crb.status().message());
@@ -349,7 +382,8 @@ std::string MonteCarloReport::ToText() const {
   std::string out;
   out += "Monte Carlo (JCGM 101): " + std::to_string(iterations) + " iterations, " +
          std::to_string(succeeded) + " located, " + std::to_string(failed) + " failed; seed " +
-         std::to_string(seed) + "; spot noise " + FormatTriple("%.4g", spot_noise_mm) + " mm; " +
+         std::to_string(seed) + "; spot noise " +
+         (per_spot_noise ? std::string("per spot") : FormatTriple("%.4g", spot_noise_mm) + " mm") + "; " +
          SpotWeightingName(weighting) + " weighting\n";
   if (failed > 0) out += "  first failure: " + first_failure + "\n";
   const std::string pct = FormatPrintf("%g", coverage_probability * 100.0);
@@ -401,6 +435,7 @@ std::string MonteCarloReport::ToJson() const {
                                               first_failure, seed, coverage_probability);
   doc["weighting"] = SpotWeightingName(weighting);
   doc["spot_noise_mm"] = VectorJson(spot_noise_mm);
+  doc["per_spot_noise"] = per_spot_noise;
   ordered_json length_array = ordered_json::array();
   for (const MonteCarloLength& l : lengths) {
     ordered_json j;

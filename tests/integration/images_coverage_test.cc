@@ -15,15 +15,19 @@
 // should be a standard normal draw when u(s) is right.
 //
 // The Monte Carlo comparison: the uncertainty module's Monte Carlo
-// (RunMeasurementMonteCarlo) of the same module and wall, with as spot noise
-//  (a) the front end's 3D spot covariances (element-wise median over the
-//      identified spots of every scene, moved into the design frame by the
-//      truth fit), and
-//  (b) the observed scatter of the measured spots about their true points
-//      (after the truth fit; pooled covariance over the spots of every scene),
-// and a Monte Carlo of our own with (c) every spot's own covariance (scene 1:
-// the true points perturbed by each spot's reported covariance, then
-// MeasureScale with the spots assigned).
+// (RunMeasurementMonteCarlo) of the same module and wall, with the spot
+// noise really present, modelled independently of the front end: each spot
+// triangulated by the scene's four true cameras with one isotropic pixel
+// noise sigma_px, whose covariance sigma_px^2 (sum_k J_k^T J_k)^-1 (J_k the
+// projection Jacobian of camera k) is long along the line of sight; sigma_px
+// is fitted to the scatter of the measured spots about their true points.
+// (One covariance for every spot, as a design's spot_noise_mm gives, cannot
+// say that the lines of sight, from cameras near the module, run nearly
+// along the beams, where a spot's error cannot move its source's origin:
+// with the median reported covariance it predicts u(s) ~17 % too high; it
+// is printed for contrast.) And a Monte Carlo of our own with every spot's
+// own reported covariance (scene 1: the true points perturbed by each
+// spot's covariance, then MeasureScale with the spots assigned).
 //
 // N = 20 scenes by default (about 4 s each in Release on 2 cores);
 // OPL_COVERAGE_SCENES=<N> runs more by hand. Everything is seeded.
@@ -55,6 +59,7 @@
 #include "opl/sim/module_design.h"
 #include "opl/sim/random.h"
 #include "opl/uncertainty/monte_carlo.h"
+#include "opl/vision/camera_model.h"
 #include "support/scene_images.h"
 
 namespace opl {
@@ -82,7 +87,7 @@ struct SceneOutcome {
   double spot_extra_sigma_px = 0.0;
   double tag_variance_factor = 0.0, tag_extra_sigma_px = 0.0;
   std::vector<double> locate_variance_factor;  // per located source
-  double u_shared = 0.0;  // part of u shared by the spots (cameras, datum)  // front end: factor applied
+  double u_shared = 0.0;  // part of u shared by the spots (cameras, datum)
   double final_variance_factor = 0.0;  // front end: final adjustment (tags and spots)
   double seconds = 0.0;                // render + measure
   // Per identified spot, in the design frame, mm: residual of the truth fit
@@ -92,6 +97,7 @@ struct SceneOutcome {
   std::vector<Eigen::Matrix3d> covariance_mm2;
   std::vector<Eigen::Vector3d> true_point_mm;
   std::vector<std::pair<std::string, int>> beam;  // (source, beam id)
+  std::vector<int> views;  // images each spot was measured in
 };
 
 // Renders scene `seed` into a temp dir, measures it, fits to the truth.
@@ -128,12 +134,14 @@ SceneOutcome MeasureSeed(const Scene& base, uint64_t seed) {
   for (const SceneSpotTruth& t : renderer->spots()) true_point[{t.source, t.beam}] = t.point_in_scene;
   std::vector<const Spot*> used;
   std::vector<Eigen::Vector3d> truths;
-  for (const Spot& spot : report->spots) {
+  for (size_t k = 0; k < report->spots.size(); ++k) {
+    const Spot& spot = report->spots[k];
     if (!spot.assigned()) continue;
     const auto found = true_point.find({spot.source, spot.observation.beam_id});
     if (found == true_point.end()) continue;
     used.push_back(&spot);
     truths.push_back(found->second);
+    out.views.push_back(static_cast<int>(report->front_end.spots[k].views.size()));
   }
   out.points = static_cast<int>(used.size());
   EXPECT_GE(out.points, 200) << "seed " << seed;
@@ -221,6 +229,28 @@ ModuleDesign WithSpotCovariance(ModuleDesign design, const Eigen::Matrix3d& c) {
   return design;
 }
 
+// The covariance of a point triangulated by `cameras` (those that see it)
+// with 1 px isotropic noise per image: (sum_k J_k^T J_k)^-1, J_k = d pixel /
+// d point of camera k by central differences (mm^2 per px^2).
+Eigen::Matrix3d TriangulationCovarianceAt1Px(const std::vector<Camera>& cameras,
+                                              const Eigen::Vector3d& point) {
+  Eigen::Matrix3d information = Eigen::Matrix3d::Zero();
+  for (const Camera& camera : cameras) {
+    Eigen::Vector2d centre;
+    if (!camera.Project(point, &centre) || !camera.InImage(centre)) continue;
+    Eigen::Matrix<double, 2, 3> j;
+    const double h = 1e-3;  // mm
+    for (int a = 0; a < 3; ++a) {
+      Eigen::Vector2d plus, minus;
+      camera.Project(point + h * Eigen::Vector3d::Unit(a), &plus);
+      camera.Project(point - h * Eigen::Vector3d::Unit(a), &minus);
+      j.col(a) = (plus - minus) / (2.0 * h);
+    }
+    information += j.transpose() * j;
+  }
+  return information.inverse();
+}
+
 TEST(ImagesCoverage, ScaleFactorWithinItsUncertainty) {
   const std::vector<SceneOutcome>& outcomes = Outcomes();
   const int n = static_cast<int>(outcomes.size());
@@ -258,14 +288,22 @@ TEST(ImagesCoverage, UncertaintyAgreesWithTheMonteCarlo) {
   Result<Scene> scene = ReadSceneJson(SourceDir() + "/examples/scene_small.json");
   ASSERT_TRUE(scene.ok()) << scene.status().ToString();
   const ModuleDesign& design = *scene->module;
+  // The scene frame of the truth is the design's (the module is placed in
+  // it, examples/scene_small.json), and so are its cameras.
+  std::vector<Camera> cameras;
+  for (const SceneCamera& c : scene->cameras) {
+    ASSERT_TRUE(c.cam_from_scene.has_value()) << c.name;
+    cameras.push_back(Camera{c.name, c.intrinsics, *c.cam_from_scene});
+  }
 
   // Relative quantities: s is mm per scene unit with s_true near 1, the
   // Monte Carlo's s is 1 on average; compare u(s)/s.
   std::vector<double> u_rel;
   double sum_d2 = 0.0, sum_d = 0.0;
   std::vector<double> c00, c01, c02, c11, c12, c22;
-  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
-  int scatter_points = 0;
+  // sigma_px of the camera model: r^T C1^-1 r summed over every spot (C1 the
+  // triangulation covariance at 1 px), over the degrees of freedom.
+  double camera_chi2 = 0.0, camera_dof = 0.0;
   for (const SceneOutcome& o : outcomes) {
     u_rel.push_back(o.u / o.s);
     const double d = o.s / o.s_true - 1.0;
@@ -279,11 +317,12 @@ TEST(ImagesCoverage, UncertaintyAgreesWithTheMonteCarlo) {
       c11.push_back(c(1, 1));
       c12.push_back(c(1, 2));
       c22.push_back(c(2, 2));
-      scatter += o.residual_mm[i] * o.residual_mm[i].transpose();
+      const Eigen::Matrix3d c1 = TriangulationCovarianceAt1Px(cameras, o.true_point_mm[i]);
+      camera_chi2 += o.residual_mm[i].dot(c1.ldlt().solve(o.residual_mm[i]));
     }
-    scatter_points += o.points - 7;  // the similarity fit takes 7 parameters
+    camera_dof += 3.0 * o.points - 7.0;  // the similarity fit takes 7 parameters
   }
-  scatter /= scatter_points;
+  const double sigma_px = std::sqrt(camera_chi2 / camera_dof);
   Eigen::Matrix3d median_cov;
   median_cov << Median(c00), Median(c01), Median(c02), Median(c01), Median(c11), Median(c12),
       Median(c02), Median(c12), Median(c22);
@@ -297,10 +336,14 @@ TEST(ImagesCoverage, UncertaintyAgreesWithTheMonteCarlo) {
   mc.iterations = 1000;
   mc.seed = 20261122;
   mc.threads = 2;
-  Result<MonteCarloReport> mc_cov = RunMeasurementMonteCarlo(WithSpotCovariance(design, median_cov), mc);
-  ASSERT_TRUE(mc_cov.ok()) << mc_cov.status().ToString();
-  Result<MonteCarloReport> mc_scatter = RunMeasurementMonteCarlo(WithSpotCovariance(design, scatter), mc);
-  ASSERT_TRUE(mc_scatter.ok()) << mc_scatter.status().ToString();
+  mc.spot_covariance_mm2 = [&cameras, sigma_px](const std::string&, int, const Eigen::Vector3d& point) {
+    return Eigen::Matrix3d(sigma_px * sigma_px * TriangulationCovarianceAt1Px(cameras, point));
+  };
+  Result<MonteCarloReport> mc_cameras = RunMeasurementMonteCarlo(design, mc);
+  ASSERT_TRUE(mc_cameras.ok()) << mc_cameras.status().ToString();
+  mc.spot_covariance_mm2 = nullptr;
+  Result<MonteCarloReport> mc_median = RunMeasurementMonteCarlo(WithSpotCovariance(design, median_cov), mc);
+  ASSERT_TRUE(mc_median.ok()) << mc_median.status().ToString();
 
   // Our own Monte Carlo with every spot's reported covariance (scene 1): true
   // points + N(0, C_i), C_i carried by the spot, assigned, MeasureScale.
@@ -334,85 +377,79 @@ TEST(ImagesCoverage, UncertaintyAgreesWithTheMonteCarlo) {
   for (double v : own_s) own_var += (v - own_mean) * (v - own_mean) / static_cast<double>(own_s.size() - 1);
   const double own_std = std::sqrt(own_var);
 
-  // Diagnosis of the spot covariances: the normalised squared residual of
-  // the truth fit, r^T C^-1 r over 3 (1 when C is the spot's covariance),
-  // before and after removing a smooth (affine, per source) error field: an
-  // error common to a group's spots (its images' poses) goes with the field.
-  double nis_sum = 0.0, nis_affine_sum = 0.0;
-  double nis_dof = 0.0, nis_affine_dof = 0.0;
-  Eigen::Matrix3d mean_cov = Eigen::Matrix3d::Zero();
-  Eigen::Matrix3d affine_scatter = Eigen::Matrix3d::Zero();
-  int cov_count = 0;
+  // Diagnosis of the reported spot covariances: the normalised squared
+  // residual of the truth fit, r^T C^-1 r per degree of freedom (1 when C is
+  // the spot's covariance), by view count and by distance from the grid's
+  // centre (thirds of the largest), and its tail (beyond chi^2_3's 99 %
+  // point, 11.34: 1 % expected).
+  double nis_sum = 0.0, nis_dof = 0.0;
+  std::map<std::string, std::pair<double, int>> by;  // label -> (sum r^T C^-1 r, spots)
+  int tail = 0, total = 0;
   for (const SceneOutcome& o : outcomes) {
-    std::map<std::string, std::vector<size_t>> by_source;
+    std::map<std::string, Eigen::Vector3d> centre;
+    std::map<std::string, int> count;
+    for (size_t i = 0; i < o.true_point_mm.size(); ++i) {
+      centre.try_emplace(o.beam[i].first, Eigen::Vector3d::Zero()).first->second += o.true_point_mm[i];
+      ++count[o.beam[i].first];
+    }
+    for (auto& [name, c] : centre) c /= count[name];
+    double max_radius = 0.0;
+    for (size_t i = 0; i < o.true_point_mm.size(); ++i) {
+      max_radius = std::max(max_radius, (o.true_point_mm[i] - centre[o.beam[i].first]).norm());
+    }
     for (size_t i = 0; i < o.residual_mm.size(); ++i) {
-      by_source[o.beam[i].first].push_back(i);
-      nis_sum += o.residual_mm[i].dot(o.covariance_mm2[i].ldlt().solve(o.residual_mm[i]));
-      mean_cov += o.covariance_mm2[i];
-      ++cov_count;
+      const double nis = o.residual_mm[i].dot(o.covariance_mm2[i].ldlt().solve(o.residual_mm[i]));
+      nis_sum += nis;
+      const double radius = (o.true_point_mm[i] - centre[o.beam[i].first]).norm() / max_radius;
+      const int third = std::min(2, static_cast<int>(3.0 * radius));
+      for (const std::string& label : {"views " + std::to_string(o.views[i]),
+                                       "radius third " + std::to_string(third + 1)}) {
+        by[label].first += nis;
+        ++by[label].second;
+      }
+      tail += nis > 11.34 ? 1 : 0;
+      ++total;
     }
     nis_dof += 3.0 * static_cast<double>(o.residual_mm.size()) - 7.0;
-    for (const auto& [name, members] : by_source) {
-      const Eigen::Index m = static_cast<Eigen::Index>(members.size());
-      Eigen::MatrixXd x(m, 4), r(m, 3);
-      for (Eigen::Index k = 0; k < m; ++k) {
-        const size_t i = members[static_cast<size_t>(k)];
-        x.row(k) << o.true_point_mm[i].transpose() - o.true_point_mm[members[0]].transpose(), 1.0;
-        r.row(k) = o.residual_mm[i].transpose();
-      }
-      const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(x);
-      const Eigen::MatrixXd rest = r - x * qr.solve(r);
-      for (Eigen::Index k = 0; k < m; ++k) {
-        const Eigen::Vector3d e = rest.row(k).transpose();
-        nis_affine_sum += e.dot(o.covariance_mm2[members[static_cast<size_t>(k)]].ldlt().solve(e));
-        affine_scatter += e * e.transpose();
-      }
-      nis_affine_dof += 3.0 * static_cast<double>(m - qr.rank());
-    }
   }
-  mean_cov /= static_cast<double>(cov_count);
-  affine_scatter /= nis_affine_dof / 3.0;
-  std::cout << "normalised residual r^T C^-1 r / dof: truth fit " << FormatNumber(nis_sum / nis_dof, 3)
-            << ", after a per-source affine field " << FormatNumber(nis_affine_sum / nis_affine_dof, 3)
-            << "\nmean reported covariance:\n" << mean_cov << "\nscatter after the affine field:\n"
-            << affine_scatter << "\n";
-
-  const auto sd = [](const Eigen::Matrix3d& c) {
-    return "(" + FormatNumber(std::sqrt(c(0, 0)), 3) + ", " + FormatNumber(std::sqrt(c(1, 1)), 3) +
-           ", " + FormatNumber(std::sqrt(c(2, 2)), 3) + ") mm";
-  };
-  std::cout << "spot noise, design frame: median reported covariance sd " << sd(median_cov)
-            << ", observed scatter sd " << sd(scatter) << "\n"
-            << "median reported covariance:\n" << median_cov << "\nobserved scatter:\n"
-            << scatter << "\n";
-  std::cout << "u(s)/s: median reported " << FormatNumber(median_u, 3) << ", empirical std of s/s_true - 1 "
-            << FormatNumber(empirical_std, 3) << " (mean " << FormatNumber(mean_d, 3) << "), MC (median cov) "
-            << FormatNumber(mc_cov->scale_factor.std_dev, 3) << " (first order "
-            << FormatNumber(mc_cov->scale_factor.first_order_std, 3) << "), MC (observed scatter) "
-            << FormatNumber(mc_scatter->scale_factor.std_dev, 3) << ", own MC (scene 1 per-spot cov, M = 200) "
-            << FormatNumber(own_std, 3) << " vs its reported " << FormatNumber(first.u / first.s, 3)
-            << "\n";
+  const double nis = nis_sum / nis_dof;
+  std::cout << "reported spot covariances: r^T C^-1 r per dof " << FormatNumber(nis, 3) << ";";
+  for (const auto& [label, v] : by) {
+    std::cout << " " << label << ": " << FormatNumber(v.first / (3.0 * v.second), 3) << " ("
+              << v.second << " spots);";
+  }
+  std::cout << " beyond chi^2_3 99 %: " << tail << " of " << total << "\n";
+  std::cout << "camera model: sigma_px " << FormatNumber(sigma_px, 3)
+            << " (front end: detector + added " << FormatNumber(first.spot_extra_sigma_px, 3)
+            << " px)\n";
+  std::cout << "u(s)/s: median reported " << FormatNumber(median_u, 3)
+            << ", empirical std of s/s_true - 1 " << FormatNumber(empirical_std, 3) << " (mean "
+            << FormatNumber(mean_d, 3) << "), MC (camera model) "
+            << FormatNumber(mc_cameras->scale_factor.std_dev, 3) << " (first order "
+            << FormatNumber(mc_cameras->scale_factor.first_order_std, 3)
+            << "), own MC (scene 1 per-spot cov, M = 200) " << FormatNumber(own_std, 3)
+            << " vs its reported " << FormatNumber(first.u / first.s, 3)
+            << "; for contrast, MC with one (the median) covariance for every spot "
+            << FormatNumber(mc_median->scale_factor.std_dev, 3) << "\n";
 
   // (1) First order vs our own Monte Carlo with the same per-spot
   // covariances: the std of M = 200 draws scatters by 1/sqrt(2(M-1)) = 5 %;
   // 15 % is three of those.
   EXPECT_NEAR(own_std / (first.u / first.s), 1.0, 0.15);
-  // (2) The reported u(s) vs the library's Monte Carlo with the median
-  // reported covariance: the same spot noise, but one covariance for every
-  // spot instead of each its own (M = 1000: 2 % scatter); within 25 %.
-  EXPECT_NEAR(mc_cov->scale_factor.std_dev / median_u, 1.0, 0.25);
-  // (3) The observed spread of s about s_true vs the Monte Carlo with the
-  // observed spot scatter: the empirical std of N = 20 values scatters as
-  // sqrt(chi^2_20 / 20); a factor 1.5 either way is missed with probability
-  // 0.016 + 0.001 by a correct prediction.
-  EXPECT_GT(empirical_std / mc_scatter->scale_factor.std_dev, 1.0 / 1.5);
-  EXPECT_LT(empirical_std / mc_scatter->scale_factor.std_dev, 1.5);
+  // (2) The reported covariances follow the scatter about the truth on
+  // average (~4700 spots: the mean is known to a few %).
+  EXPECT_NEAR(nis, 1.0, 0.2);
+  // (3) The observed spread of s about s_true vs the Monte Carlo of the
+  // spot noise really present: the empirical std of N = 20 values scatters
+  // as sqrt(chi^2_20 / 20); a factor 1.5 either way is missed with
+  // probability 0.016 + 0.001 by a correct prediction.
+  EXPECT_GT(empirical_std / mc_cameras->scale_factor.std_dev, 1.0 / 1.5);
+  EXPECT_LT(empirical_std / mc_cameras->scale_factor.std_dev, 1.5);
   // (4) The requirement: the reported u(s) is what the Monte Carlo
-  // predicts for the spot noise really present (the observed scatter);
-  // within 25 % (the two are near-deterministic: median of N values, M = 1000).
-  EXPECT_NEAR(median_u / mc_scatter->scale_factor.std_dev, 1.0, 0.25)
-      << "the 3D spot covariances understate the spots' scatter about the truth by "
-      << FormatNumber(nis_sum / nis_dof, 3) << " in variance";
+  // predicts for the same spot noise; within 15 % (the median of N values
+  // against M = 1000 draws, 2 % each; the camera model's one sigma_px for
+  // every spot and view is an approximation of a few %).
+  EXPECT_NEAR(median_u / mc_cameras->scale_factor.std_dev, 1.0, 0.15);
 }
 
 }  // namespace

@@ -115,6 +115,21 @@ TEST(MeasureScaleFromImages, NoiseFreeRenderGivesTheTrueScale) {
     EXPECT_LT(f.spot_rms_px, 0.1) << f.file;
   }
   EXPECT_TRUE(report->metadata_conflicts.empty());
+  // One laser per exposure group: the other source is reported as off in
+  // that group, not as "not found" for want of spots.
+  ASSERT_EQ(report->identification.size(), 2u);
+  for (size_t g = 0; g < 2; ++g) {
+    const std::vector<std::string>& lasers = report->front_end.groups[g].lasers;
+    ASSERT_EQ(lasers.size(), 1u);
+    for (const IdentifiedSource& source : report->identification[g].sources) {
+      if (source.name == lasers[0]) {
+        EXPECT_EQ(source.outcome, IdentifyOutcome::kFound) << source.name;
+      } else {
+        EXPECT_EQ(source.outcome, IdentifyOutcome::kNotFound) << source.name;
+        EXPECT_EQ(source.detail, "laser off in these shots: not searched") << source.name;
+      }
+    }
+  }
   const TruthFit fit = FitToTruth(*report, truth);
   std::cout.precision(10);
   std::cout << "truth fit: " << fit.points << " spots, scale " << fit.scale << ", rms "

@@ -4,6 +4,8 @@
 #include "opl/uncertainty/monte_carlo.h"
 
 #include <cmath>
+#include <iostream>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -102,6 +104,78 @@ TEST(MonteCarloTest, StdOfLengthIsLinearInSpotNoise) {
   EXPECT_NEAR(twice->lengths[0].photo_mm.first_order_std / once->lengths[0].photo_mm.first_order_std,
               2.0, 1e-6);
   EXPECT_NEAR(twice->scale_factor.std_dev / once->scale_factor.std_dev, 2.0, 0.04);
+}
+
+// Per-spot noise (MonteCarloOptions::spot_covariance_mm2). A spot's error
+// along its own beam does not change the beam's direction seen from the
+// origin, so it cannot move the located origin (to first order): noise
+// stretched 20x along each beam gives the same std(s) as isotropic noise
+// (the symmetric square root draws the same across-beam noise from the
+// same seed), while the same stretch along one fixed axis (X, the mean
+// beam direction, as one design-level Sigma for every spot would put it)
+// gives a much larger std(s). Isotropic per-spot noise reproduces the
+// design-level first-order std exactly.
+TEST(MonteCarloTest, PerSpotNoiseAlongTheBeamsDoesNotMoveTheOrigins) {
+  ModuleDesign design = StaggeredDesign();
+  const double sigma = 0.08;  // mm
+  std::map<std::string, Eigen::Vector3d> origin;
+  for (const SourceDesign& d : design.sources) origin[d.name] = d.scene_from_source.translation;
+  const auto stretched = [&](double along, bool along_beam) {
+    return [&origin, sigma, along, along_beam](const std::string& source, int,
+                                               const Eigen::Vector3d& point) {
+      const Eigen::Vector3d b =
+          along_beam ? Eigen::Vector3d((point - origin.at(source)).normalized()) : Eigen::Vector3d::UnitX();
+      return Eigen::Matrix3d(sigma * sigma * (Eigen::Matrix3d::Identity() - b * b.transpose()) +
+                             along * along * b * b.transpose());
+    };
+  };
+  MonteCarloOptions options;
+  options.iterations = 300;
+  options.seed = 11;
+  options.threads = 2;
+  options.spot_covariance_mm2 = stretched(sigma, true);
+  Result<MonteCarloReport> isotropic = RunMeasurementMonteCarlo(design, options);
+  options.spot_covariance_mm2 = stretched(20.0 * sigma, true);
+  Result<MonteCarloReport> along_beams = RunMeasurementMonteCarlo(design, options);
+  options.spot_covariance_mm2 = stretched(20.0 * sigma, false);
+  Result<MonteCarloReport> along_x = RunMeasurementMonteCarlo(design, options);
+  ASSERT_TRUE(isotropic.ok()) << isotropic.status().message();
+  ASSERT_TRUE(along_beams.ok()) << along_beams.status().message();
+  ASSERT_TRUE(along_x.ok()) << along_x.status().message();
+  EXPECT_TRUE(isotropic->per_spot_noise);
+  EXPECT_NE(isotropic->ToText().find("spot noise per spot"), std::string::npos);
+  const SampleSummary& iso = isotropic->scale_factor;
+  const SampleSummary& beams = along_beams->scale_factor;
+  const SampleSummary& x = along_x->scale_factor;
+  std::cout << "std(s) ppm: isotropic " << iso.std_dev * 1e6 << " (FO " << iso.first_order_std * 1e6
+            << "), 20x along the beams " << beams.std_dev * 1e6 << " (FO " << beams.first_order_std * 1e6
+            << "), 20x along X " << x.std_dev * 1e6 << " (FO " << x.first_order_std * 1e6 << ")\n";
+  EXPECT_EQ(along_beams->succeeded, 300);
+  EXPECT_NEAR(beams.first_order_std / iso.first_order_std, 1.0, 1e-6);
+  EXPECT_NEAR(beams.std_dev / iso.std_dev, 1.0, 0.03);
+  EXPECT_GT(x.first_order_std / iso.first_order_std, 2.0);
+  EXPECT_NEAR(x.std_dev / x.first_order_std, 1.0, 0.15);
+
+  // The design-level isotropic Sigma: the same first-order std.
+  design.spot_noise_mm = Eigen::Vector3d::Constant(sigma);
+  options.spot_covariance_mm2 = nullptr;
+  Result<MonteCarloReport> design_level = RunMeasurementMonteCarlo(design, options);
+  ASSERT_TRUE(design_level.ok()) << design_level.status().message();
+  EXPECT_FALSE(design_level->per_spot_noise);
+  EXPECT_NEAR(design_level->scale_factor.first_order_std / iso.first_order_std, 1.0, 1e-9);
+  EXPECT_NEAR(design_level->scale_factor.cramer_rao_std / iso.cramer_rao_std, 1.0, 1e-9);
+
+  // A covariance that is not one: the spot is named.
+  options.spot_covariance_mm2 = [](const std::string&, int beam, const Eigen::Vector3d&) {
+    const Eigen::Matrix3d identity = Eigen::Matrix3d::Identity();
+    return Eigen::Matrix3d(beam == 5 ? -identity : identity);
+  };
+  Result<MonteCarloReport> bad = RunMeasurementMonteCarlo(design, options);
+  ASSERT_FALSE(bad.ok());
+  EXPECT_EQ(bad.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(bad.status().message().find("source 'A' beam 5: not positive semi-definite"),
+            std::string::npos)
+      << bad.status().message();
 }
 
 // Per-iteration seeds and an index-ordered reduction: 1 and 3 threads give

@@ -6,7 +6,8 @@
 // s = 1 on average), every iteration i = 0 .. N-1:
 //   1. adds noise to the noise-free spots of every source (SimulateSpots with
 //      no missing spot and no outlier): e ~ N(0, Sigma), Sigma =
-//      ModuleDesign::SpotCovarianceMm2(), each spot carrying Sigma;
+//      ModuleDesign::SpotCovarianceMm2(), each spot carrying Sigma (or each
+//      spot its own Sigma_i, MonteCarloOptions::spot_covariance_mm2);
 //   2. locates every source (LocateSource);
 //   3. computes L_photo of every calibrated pair and s (ComputeScaleFactor).
 // and records the origins, the pose angles (R = Rx Ry Rz), the L and s. The
@@ -67,6 +68,18 @@ struct MonteCarloOptions {
   // kUnweighted gives none (plain angular residuals, as for spots without
   // sx, sy, sz).
   SpotWeighting weighting = SpotWeighting::kEfficient;
+  // Spot noise per spot instead of the design's one Sigma (may be empty):
+  // called once per spot with its source, beam id and true point (mm, the
+  // design's frame), it returns that spot's covariance (mm^2: symmetric,
+  // positive semi-definite, finite), from which the spot draws its noise
+  // (through the symmetric square root) and which it carries. For noise
+  // that is not the same everywhere: spots triangulated by cameras are
+  // uncertain mostly along the line of sight, which turns from spot to spot
+  // (tests/integration/images_coverage_test.cc). The design's spot_noise_mm
+  // is then not used.
+  std::function<Eigen::Matrix3d(const std::string& source, int beam_id,
+                                const Eigen::Vector3d& true_point_in_scene)>
+      spot_covariance_mm2;
   // Called on the calling thread, about every progress_interval_s and once at
   // the end, with the number of iterations done (successful or not) and M.
   std::function<void(int done, int total)> progress;
@@ -118,7 +131,8 @@ struct MonteCarloReport {
   int threads = 0;  // worker threads used (does not change the results)
   double coverage_probability = 0.95;
   SpotWeighting weighting = SpotWeighting::kEfficient;
-  Eigen::Vector3d spot_noise_mm = Eigen::Vector3d::Zero();
+  Eigen::Vector3d spot_noise_mm = Eigen::Vector3d::Zero();  // the design's; zero when per spot
+  bool per_spot_noise = false;  // MonteCarloOptions::spot_covariance_mm2 was given
   std::vector<MonteCarloSource> sources;  // design order
   std::vector<MonteCarloLength> lengths;  // every pair (i < j), design order
   SampleSummary scale_factor;             // s (expected 1)

@@ -16,7 +16,10 @@
 // sources with the same nominal pattern cannot be confused); with several
 // lasers on, any source. A spot identified as a source that was off in its
 // exposure group, or a (source, beam) already given by another group, is
-// reported and not used. The assigned spots then go to MeasureScale
+// reported and not used. In a group's identification, a source whose laser
+// was off is reported "not found" with the detail "laser off in these
+// shots" (": not searched" when one laser was on). The assigned spots then
+// go to MeasureScale
 // (pipeline/measure.h): every source located, the scale factor computed
 // from the calibrated separations.
 //

@@ -202,6 +202,9 @@ std::string MeasureReport::ToText() const {
   out += "Scale factor s = " + FormatPrintf("%.9f", scale.scale_factor) + " +- " +
          FormatPrintf("%.9f", scale.u_scale_factor) + " mm per scene unit (" +
          FormatPrintf("%.1f", scale.u_scale_factor / scale.scale_factor * 1e6) + " ppm, k = 1)\n";
+  out += "Expanded uncertainty U = " + FormatPrintf("%.9f", 2.0 * scale.u_scale_factor) +
+         " (k = 2: s - U .. s + U covers the true scale with about 95 % probability when s is "
+         "normally distributed)\n";
   if (scale.dof > 0) {
     out += "Consistency chi2/dof = " + FormatPrintf("%.3f", scale.chi2) + "/" +
            std::to_string(scale.dof) + " = " +
@@ -272,6 +275,8 @@ std::string MeasureReport::ToJson() const {
   doc["lengths"] = std::move(lengths);
   doc["scale_factor"] = scale.scale_factor;
   doc["u_scale_factor"] = scale.u_scale_factor;
+  doc["expanded_u_scale_factor"] = 2.0 * scale.u_scale_factor;
+  doc["coverage_factor"] = 2;
   doc["chi2"] = scale.chi2;
   doc["dof"] = scale.dof;
   doc["max_normalized_deviation"] = scale.max_normalized_deviation;

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "opl/core/format.h"
 #include "pipeline/synthetic_module.h"
 
 namespace opl {
@@ -111,6 +112,8 @@ TEST(MeasureScale, JsonHasTheDocumentedFieldsAndRoundTripsNumbers) {
   EXPECT_EQ(j["lengths"][0]["u_photo"].get<double>(), report->scale.lengths[0].u_photo);
   EXPECT_EQ(j["scale_factor"].get<double>(), report->scale.scale_factor);
   EXPECT_EQ(j["u_scale_factor"].get<double>(), report->scale.u_scale_factor);
+  EXPECT_EQ(j["expanded_u_scale_factor"].get<double>(), 2.0 * report->scale.u_scale_factor);
+  EXPECT_EQ(j["coverage_factor"].get<int>(), 2);
   EXPECT_EQ(j["units"]["scale_factor"], "mm per scene unit");
 }
 
@@ -124,6 +127,8 @@ TEST(MeasureScale, TextSummaryShowsEverySection) {
   EXPECT_THAT(text, HasSubstr("urad"));
   EXPECT_THAT(text, HasSubstr("  A-B: photo 27.501420 +- "));  // 55.002841 mm / 2
   EXPECT_THAT(text, HasSubstr("Scale factor s = 2.000000000 +- "));
+  EXPECT_THAT(text, HasSubstr("Expanded uncertainty U = " +
+                              FormatPrintf("%.9f", 2.0 * report->scale.u_scale_factor) + " (k = 2"));
   EXPECT_THAT(text, ::testing::Not(HasSubstr("Consistency")));  // one length only
 }
 

@@ -178,6 +178,12 @@ struct Hypothesis {
   std::vector<SpotRef> spots;  // by increasing view
   TriangulatedPoint point;
   double chi2 = 0.0;  // ranking chi^2
+  // chi2 + sum_i ln det(Sigma_i + tau^2 I): twice the negative
+  // log-likelihood (up to a constant), which orders and compares the
+  // hypotheses. chi2 alone favoured a hypothesis holding a detection with a
+  // degenerate covariance (it adds ~0 to chi2 wherever it lies) over the
+  // true one, and the two were refused as ambiguous.
+  double nll = 0.0;
   // kLive: may be accepted; kContested: lost a detection to an ambiguity but
   // still explains its others (a competitor); kDead: accepted, or explained
   // away by an accepted track.
@@ -253,7 +259,7 @@ class Matcher {
       std::vector<int> newly;
       bool accepted = false;
       if (c >= 0 && (hyps_[static_cast<size_t>(c)].spots.size() > H.spots.size() ||
-                     hyps_[static_cast<size_t>(c)].chi2 - H.chi2 < options_.ambiguity_chi2)) {
+                     hyps_[static_cast<size_t>(c)].nll - H.nll < options_.ambiguity_chi2)) {
         const Hypothesis& C = hyps_[static_cast<size_t>(c)];
         SpotAmbiguity amb;
         amb.best = H.spots;
@@ -335,7 +341,7 @@ class Matcher {
   }
   std::tuple<int, double, int> Key(int h) const {
     const Hypothesis& H = hyps_[static_cast<size_t>(h)];
-    return {-static_cast<int>(H.spots.size()), H.chi2, h};
+    return {-static_cast<int>(H.spots.size()), H.nll, h};
   }
 
   // Calls f(item) once for each item of a cell within `band` of the line.
@@ -344,6 +350,18 @@ class Matcher {
                 std::vector<int>* stamp, int stamp_value, F&& f) {
     const Eigen::Vector2d n(line(0), line(1));
     const Eigen::Vector2d dir(-n.y(), n.x());
+    // A band wider than the grid's box (search variances set by detections
+    // with degenerate covariances) holds every cell: visit each once rather
+    // than walk a line of length ~2 band in steps of one cell (which, with
+    // bands of 1e6 px and more, did not end).
+    if (band >= std::hypot(grid.x1() - grid.x0(), grid.y1() - grid.y0())) {
+      for (int c = 0; c < grid.num_cells(); ++c) {
+        if ((*stamp)[static_cast<size_t>(c)] == stamp_value) continue;
+        (*stamp)[static_cast<size_t>(c)] = stamp_value;
+        grid.ForEachInCell(c, f);
+      }
+      return;
+    }
     const Eigen::Vector2d centre(0.5 * (grid.x0() + grid.x1()), 0.5 * (grid.y0() + grid.y1()));
     const Eigen::Vector2d p0 = centre - (n.dot(centre) + line(2)) * n;
     // Clip the line to the grid's box widened by the band (slab method).
@@ -449,8 +467,13 @@ class Matcher {
       const Eigen::Matrix2d S_pred = J * C * J.transpose() + tau2_ * Eigen::Matrix2d::Identity();
       const double radius = std::sqrt(g2_ * (LargestEigenvalue(S_pred) + vk.search_var_real));
       if (!(radius < 1e4)) continue;  // the point is barely determined
+      // Within the gate (m2 <= g^2), the most likely detection: the lowest
+      // m2 + ln det S (the Gaussian's negative log-likelihood, doubled). The
+      // lowest m2 alone preferred a detection with a degenerate covariance
+      // (the detector's poor fits of non-spot blobs: 1e6 px^2 and more),
+      // whose m2 is ~0 wherever it lies, to the true detection beside it.
       int best = -1;
-      double best_m2 = g2_;
+      double best_nll = std::numeric_limits<double>::infinity();
       vk.grid_real.ForEachCell(px.x() - radius, px.y() - radius, px.x() + radius,
                                px.y() + radius, [&](int cell) {
         vk.grid_real.ForEachInCell(cell, [&](int s) {
@@ -458,8 +481,10 @@ class Matcher {
           if (r.squaredNorm() > radius * radius) return;
           const Eigen::Matrix2d S = S_pred + vk.cov[static_cast<size_t>(s)];
           const double m2 = r.dot(S.inverse() * r);
-          if (m2 <= best_m2) {
-            best_m2 = m2;
+          if (!(m2 <= g2_)) return;
+          const double nll = m2 + std::log(S.determinant());
+          if (nll < best_nll) {
+            best_nll = nll;
             best = s;
           }
         });
@@ -496,13 +521,14 @@ class Matcher {
         ++result_->rejected_geometry;
         return;
       }
-      double chi2 = 0.0, worst = -1.0;
+      double chi2 = 0.0, log_det = 0.0, worst = -1.0;
       size_t worst_k = 0;
       for (size_t k = 0; k < refs.size(); ++k) {
         const View& v = views_[static_cast<size_t>(refs[k].view)];
         const Eigen::Vector2d& r = tp->residuals_px[k];
         const double m2 = r.dot(v.eff_weight[static_cast<size_t>(refs[k].spot)] * r);
         chi2 += m2;
+        log_det -= std::log(v.eff_weight[static_cast<size_t>(refs[k].spot)].determinant());
         if (m2 > worst) {
           worst = m2;
           worst_k = k;
@@ -517,6 +543,7 @@ class Matcher {
       h.spots = refs;
       h.point = std::move(tp).value();
       h.chi2 = chi2;
+      h.nll = chi2 + log_det;
       const int id = static_cast<int>(hyps_.size());
       for (const SpotRef& r : refs) hyps_of_spot_[static_cast<size_t>(Flat(r))].push_back(id);
       for (size_t x = 0; x < refs.size(); ++x) {

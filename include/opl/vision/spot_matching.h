@@ -33,22 +33,28 @@
 //  3. Each candidate pair is triangulated (midpoint, then Gauss-Newton) with
 //     its first-order covariance C; points behind a camera or seen under less
 //     than min_triangulation_angle_deg are dropped. The point is projected
-//     into every other view k (Jacobian J_k) and the real-pixel grid gives
-//     the detection with the lowest r^T (J_k C J_k^T + Sigma + tau^2 I)^-1 r
-//     within g^2. The views that agree are the hypothesis' support. A pair
+//     into every other view k (Jacobian J_k) and the real-pixel grid gives,
+//     among the detections with r^T S^-1 r <= g^2 (S = J_k C J_k^T + Sigma
+//     + tau^2 I), the most likely one: the lowest r^T S^-1 r + ln det S (a
+//     detection with a degenerate covariance, which the spot detector can
+//     report for a non-spot blob, lies inside every gate with r^T S^-1 r ~ 0
+//     and must not be preferred to the true detection beside it). The views
+//     that agree are the hypothesis' support. A pair
 //     already inside a stored hypothesis (seeded by another pair of its
 //     views) is not tried again.
 //  4. A hypothesis with at least min_views views (identical ones from other
 //     seed pairs merged) is triangulated from all of them (TriangulatePoint:
 //     weighted, with covariance); an observation outside its gate is dropped
 //     (the worst first) while min_views remain. Its ranking chi^2 is
-//     sum_i r_i^T (Sigma_i + tau^2 I)^-1 r_i.
-//  5. Greedy acceptance, most views first, then lowest ranking chi^2. Before
+//     sum_i r_i^T (Sigma_i + tau^2 I)^-1 r_i; hypotheses are ordered and
+//     compared by nll = chi^2 + sum_i ln det(Sigma_i + tau^2 I) (twice the
+//     negative log-likelihood), for the same reason as in step 3.
+//  5. Greedy acceptance, most views first, then lowest nll. Before
 //     accepting h, its best competitor c is looked at: a hypothesis sharing
 //     a detection with h, neither a subset of the other, with at least as
 //     many views, still live or "contested" (it lost a detection to an
 //     earlier ambiguity but still explains its others). When c has more
-//     views, or as many and chi^2(c) - chi^2(h) < ambiguity_chi2, the two
+//     views, or as many and nll(c) - nll(h) < ambiguity_chi2, the two
 //     are equally good explanations and h is not accepted: when they share
 //     one detection that detection is blocked (left unmatched); when they
 //     share two or more (they agree on the point) the detections where they
@@ -141,8 +147,9 @@ struct SpotMatchOptions {
   // Points whose largest angle between rays is below this [deg] are not
   // matched (their depth is barely determined).
   double min_triangulation_angle_deg = 1.0;
-  // Two hypotheses with equal support whose ranking chi^2 differ by less
-  // than this are ambiguous (9: a likelihood ratio of 90); neither is taken.
+  // Two hypotheses with equal support whose nll (chi^2 + sum ln det, header
+  // step 4) differ by less than this are ambiguous (9: a likelihood ratio of
+  // 90); neither is taken.
   double ambiguity_chi2 = 9.0;
   // Side of the bucket grid cells [px].
   double grid_cell_px = 8.0;

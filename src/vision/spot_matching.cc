@@ -266,6 +266,8 @@ class Matcher {
         amb.second = C.spots;
         amb.best_chi2 = H.chi2;
         amb.second_chi2 = C.chi2;
+        amb.best_nll = H.nll;
+        amb.second_nll = C.nll;
         std::vector<SpotRef> shared;
         for (const SpotRef& r : H.spots) {
           if (Contains(C.spots, r)) shared.push_back(r);

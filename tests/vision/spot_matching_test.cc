@@ -482,6 +482,14 @@ TEST(SpotMatching, TwoViewsReportAmbiguitiesInsteadOfGuessing) {
   std::printf("two views: %zu of %d points matched, %zu ambiguities reported\n",
               r->tracks.size(), seen_in_both, r->ambiguities.size());
   EXPECT_GE(r->ambiguities.size(), s.planted.size());
+  // Each ambiguity of two equally supported explanations was refused
+  // because their likelihoods are within ambiguity_chi2 (the decision
+  // value the ambiguity carries).
+  for (const SpotAmbiguity& amb : r->ambiguities) {
+    if (amb.best.size() != amb.second.size()) continue;
+    EXPECT_LT(amb.second_nll - amb.best_nll, options.ambiguity_chi2);
+    EXPECT_NE(amb.best_nll, amb.best_chi2);  // the ln det terms are in it
+  }
   // Some points remain matchable in two views.
   EXPECT_GT(static_cast<int>(r->tracks.size()), seen_in_both / 4);
   // Each trap's real spot in view 0 is left unmatched and named by an

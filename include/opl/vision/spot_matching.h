@@ -173,6 +173,11 @@ struct SpotAmbiguity {
   std::vector<SpotRef> second;  // its competitor's
   double best_chi2 = 0.0;       // ranking chi^2 of each
   double second_chi2 = 0.0;
+  // What decided (header step 5): nll = chi^2 + sum ln det(Sigma_i + tau^2
+  // I) of each. With as many views, second_nll - best_nll < ambiguity_chi2;
+  // the chi^2 alone may differ by more, or the other way round.
+  double best_nll = 0.0;
+  double second_nll = 0.0;
   std::vector<SpotRef> blocked;  // detections left unmatched because of it
 };
 

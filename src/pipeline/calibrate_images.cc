@@ -1,6 +1,11 @@
 #include "opl/pipeline/calibrate_images.h"
 
+#include <algorithm>
+#include <map>
 #include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
 
 #include "opl/core/format.h"
 
@@ -21,6 +26,16 @@ std::string ImageCalibrationReport::ToText() const {
       << FormatNumber(scaling.artifact_length_mm, 8) << " mm: scale "
       << FormatNumber(scaling.scale, 10) << " (u_rel " << FormatNumber(scaling.u_scale_relative, 3)
       << ")\n";
+  if (shared.components > 0) {
+    for (size_t l = 0; l < calibration.calibration.separations.size(); ++l) {
+      const Separation& sep = calibration.calibration.separations[l];
+      out << "u(" << sep.from << "-" << sep.to << ") = sqrt(own^2 + shared^2): own "
+          << FormatNumber(shared.u_separation_own_mm[l], 3) << " mm (the spots' own errors), shared "
+          << FormatNumber(shared.u_separation_shared_mm[l], 3)
+          << " mm (camera poses and datum tags, common to the spots of an image; "
+          << shared.components << " components)\n";
+    }
+  }
   return out.str();
 }
 
@@ -63,12 +78,14 @@ Result<ImageCalibrationReport> CalibrateFromImages(const Scene& scene,
   // The spots of every group are one slice (one grid, one screen position).
   std::vector<Spot> spots;
   std::vector<int> slices;
+  std::map<std::string, size_t> front_end_index;  // by `where`
   for (size_t k = 0; k < report.front_end.spots.size(); ++k) {
     const FrontEndSpot& s = report.front_end.spots[k];
     Spot spot;
     spot.observation.point_in_scene = s.point_in_scene;
     spot.observation.cov_in_scene = s.covariance;
     spot.where = "spot " + std::to_string(k + 1) + " (group " + std::to_string(s.group) + ")";
+    front_end_index[spot.where] = k;
     spots.push_back(spot);
     slices.push_back(s.group);
   }
@@ -81,11 +98,38 @@ Result<ImageCalibrationReport> CalibrateFromImages(const Scene& scene,
                               std::to_string(report.front_end.groups.size()) +
                               " exposure groups");
   }
-  Result<ModuleCalibrationResult> calibrated =
-      CalibrateModule(report.identification.spots, report.identification.slices,
-                      report.scaling, options.calibrate);
+  // The own / shared split of every identified spot, when the front end gave
+  // it.
+  std::vector<Spot> assigned = report.identification.spots;
+  std::vector<const FrontEndSpot*> source_spots;
+  std::vector<Eigen::MatrixXd> factors;
+  bool split = options.propagate_shared_errors;
+  for (const Spot& s : assigned) {
+    const FrontEndSpot& f = report.front_end.spots.at(front_end_index.at(s.where));
+    split &= f.shared_factor.size() > 0 &&
+             (factors.empty() || f.shared_factor.cols() == factors.front().cols());
+    source_spots.push_back(&f);
+    factors.push_back(f.shared_factor);
+  }
+  if (split) {
+    for (size_t i = 0; i < assigned.size(); ++i) {
+      assigned[i].observation.cov_in_scene = source_spots[i]->own_covariance;
+    }
+  }
+  Result<ModuleCalibrationResult> calibrated = CalibrateModule(
+      assigned, report.identification.slices, report.scaling, options.calibrate);
   if (!calibrated.ok()) return calibrated.status();
   report.calibration = std::move(*calibrated);
+  if (split) {
+    const int threads = options.front_end.num_threads > 0
+                            ? options.front_end.num_threads
+                            : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+    Result<SharedErrorSummary> shared =
+        AddSharedErrors(assigned, report.identification.slices, report.scaling,
+                        options.calibrate, factors, &report.calibration, threads);
+    if (!shared.ok()) return shared.status();
+    report.shared = std::move(*shared);
+  }
   return report;
 }
 

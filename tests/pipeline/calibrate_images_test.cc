@@ -148,6 +148,15 @@ TEST(CalibrateFromImages, NoiseFreeSessionGivesTheTrueModule) {
   EXPECT_LT(std::abs(sep.length_mm - true_length), 3.0 * sep.u_length_mm);
   EXPECT_LT(std::abs(sep.length_mm - true_length), 0.02);
   EXPECT_LT(sep.u_length_mm, 0.05);
+  // Its u carries the errors the spots share (camera poses, datum tags):
+  // 9 + 6 components per image.
+  EXPECT_EQ(report->shared.components, 9 + 6 * static_cast<int>(scene.shots.size()));
+  ASSERT_EQ(report->shared.u_separation_shared_mm.size(), 1u);
+  EXPECT_GT(report->shared.u_separation_shared_mm[0], 0.2 * report->shared.u_separation_own_mm[0]);
+  EXPECT_NEAR(sep.u_length_mm,
+              std::hypot(report->shared.u_separation_own_mm[0],
+                         report->shared.u_separation_shared_mm[0]),
+              1e-12);
 
   // Every beam's direction against the fabricated pattern, microradians.
   for (const SourceDesign& source : design.sources) {

@@ -23,8 +23,18 @@
 // a group is a slice of one grid) and every source is calibrated
 // (CalibrateModule).
 //
-// Errors: those of RunImageFrontEnd, IdentifySessionSlices and
-// CalibrateModule; InvalidArgument when the scene has no artifact;
+// The spots' errors are not independent: every spot of an image shares its
+// camera's pose error, and every spot the datum tags' (FrontEndSpot::
+// shared_factor). With propagate_shared_errors (the default) each spot is
+// weighted by its own covariance and the shared part is added to the
+// calibration's covariances by AddSharedErrors (calibrate/shared_errors.h):
+// two re-solves per component, m = 9 + 6 per image. Without it, the spots
+// are weighted by their whole covariance as if independent, and on noisy
+// images u(separation) comes out about 1.4 times too small
+// (docs/images.md, "Calibration sessions").
+//
+// Errors: those of RunImageFrontEnd, IdentifySessionSlices, CalibrateModule
+// and AddSharedErrors; InvalidArgument when the scene has no artifact;
 // NoSolution when an artifact tag was not placed or no spot is identified.
 #pragma once
 
@@ -32,6 +42,7 @@
 #include <vector>
 
 #include "opl/calibrate/calibrate_module.h"
+#include "opl/calibrate/shared_errors.h"
 #include "opl/core/status.h"
 #include "opl/identify/identify_slices.h"
 #include "opl/lab/scene.h"
@@ -44,6 +55,7 @@ struct ImageCalibrationOptions {
   FrontEndOptions front_end;
   CalibrateModuleOptions calibrate;
   IdentifyOptions identify;
+  bool propagate_shared_errors = true;
 
   Status Validate() const;
 };
@@ -53,8 +65,12 @@ struct ImageCalibrationReport {
   CalibrationScaling scaling;            // from the artifact's tags
   SessionIdentification identification;  // slice = exposure group index
   ModuleCalibrationResult calibration;
+  // The separations' u split into the spots' own errors and the shared ones
+  // (components 0 when not propagated).
+  SharedErrorSummary shared;
 
-  // The front end's report, the identification's, then the scaling.
+  // The front end's report, the identification's, the scaling, then the
+  // separations' own / shared split.
   std::string ToText() const;
 };
 

@@ -91,7 +91,8 @@ struct FrontEndOptions {
   // when their own variance factor exceeds the limit. > 1.
   bool rescale_spot_covariances = true;
   double max_spot_variance_factor = 1.5;
-  // Worker threads for the detection, >= 0; 0 = every core.
+  // Worker threads for the detection (and for CalibrateFromImages' re-solves
+  // of the shared errors), >= 0; 0 = every core.
   int num_threads = 0;
   // Called after each image is detected and at each later stage:
   // (stage, done, total); may be empty.

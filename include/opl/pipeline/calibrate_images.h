@@ -30,8 +30,9 @@
 // calibration's covariances by AddSharedErrors (calibrate/shared_errors.h):
 // two re-solves per component, m = 9 + 6 per image. Without it, the spots
 // are weighted by their whole covariance as if independent, and on noisy
-// images u(separation) comes out about 1.4 times too small
-// (docs/images.md, "Calibration sessions").
+// images u(separation) comes out far too small: 36 um where seeds 1-10 of
+// the example session made noisy scatter by 63 um (docs/images.md,
+// "Calibration sessions").
 //
 // Errors: those of RunImageFrontEnd, IdentifySessionSlices, CalibrateModule
 // and AddSharedErrors; InvalidArgument when the scene has no artifact;

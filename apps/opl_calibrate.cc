@@ -214,7 +214,9 @@ int Run(int argc, char** argv) {
                      "Scene JSON of the session: cameras, tags, frame and artifact tags, shots\n"
                      "with their lasers and slice (docs/formats.md)")
           ->type_name("FILE");
-  app.add_option("--threads", args.threads, "With --images: detection threads, >= 0; 0 = every core")
+  app.add_option("--threads", args.threads,
+                 "With --images: threads for the detection and for the re-solves that\n"
+                 "carry the spots' shared errors, >= 0; 0 = every core")
       ->capture_default_str();
   images->needs(scene);
   scene->needs(images);

@@ -48,6 +48,7 @@ struct Args {
   std::string images_dir;
   std::string scene_path;
   int threads = 0;
+  bool one_pose_per_camera = false;
 };
 
 // Reads the artifact's two targets from the targets file and computes the
@@ -164,6 +165,7 @@ int RunImages(const Args& args) {
                                                          : RobustLoss::kNone;
   options.calibrate.source.outlier_threshold = args.outlier_threshold;
   options.front_end.num_threads = args.threads;
+  options.front_end.one_pose_per_camera = args.one_pose_per_camera;
   cli::ProgressBar bar("images", cli::StderrIsTerminal());
   options.front_end.progress = bar.StageCallback("detect");
   Result<ImageCalibrationReport> report =
@@ -218,6 +220,11 @@ int Run(int argc, char** argv) {
                  "With --images: threads for the detection and for the re-solves that\n"
                  "carry the spots' shared errors, >= 0; 0 = every core")
       ->capture_default_str();
+  app.add_flag("--one-pose-per-camera", args.one_pose_per_camera,
+               "With --images: the shots of one camera share one pose (cameras on tripods,\n"
+               "untouched for the whole session); refused when a camera's shots place it\n"
+               "more than 5 mm or 2 mrad apart (docs/images.md)")
+      ->needs(images);
   images->needs(scene);
   scene->needs(images);
   opl::cli::AddPointTableOptions(app, &args.spots);

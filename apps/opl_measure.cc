@@ -30,6 +30,7 @@ struct Args {
   std::string scene_path;
   std::string spots_out_path;
   int threads = 0;
+  bool one_pose_per_camera = false;
 };
 
 // opl_measure --images: the image front end, then the measurement.
@@ -55,6 +56,7 @@ int RunImages(const Args& args) {
   }
   ImageMeasureOptions options;
   options.front_end.num_threads = args.threads;
+  options.front_end.one_pose_per_camera = args.one_pose_per_camera;
   cli::ProgressBar bar("images", cli::StderrIsTerminal());
   options.front_end.progress = bar.StageCallback("detect");
   Result<ImageMeasureReport> report =
@@ -138,6 +140,11 @@ int Run(int argc, char** argv) {
           ->type_name("FILE");
   app.add_option("--threads", args.threads, "With --images: detection threads, >= 0; 0 = every core")
       ->capture_default_str();
+  app.add_flag("--one-pose-per-camera", args.one_pose_per_camera,
+               "With --images: the shots of one camera share one pose (cameras on tripods,\n"
+               "untouched for the whole session); refused when a camera's shots place it\n"
+               "more than 5 mm or 2 mrad apart (docs/images.md)")
+      ->needs(images);
   images->needs(scene);
   scene->needs(images);
   spots_out->needs(images);

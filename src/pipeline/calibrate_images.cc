@@ -32,7 +32,7 @@ std::string ImageCalibrationReport::ToText() const {
       out << "u(" << sep.from << "-" << sep.to << ") = sqrt(own^2 + shared^2): own "
           << FormatNumber(shared.u_separation_own_mm[l], 3) << " mm (the spots' own errors), shared "
           << FormatNumber(shared.u_separation_shared_mm[l], 3)
-          << " mm (camera poses and datum tags, common to the spots of an image; "
+          << " mm (camera poses and datum tags, common to many spots; "
           << shared.components << " components)\n";
     }
   }

@@ -16,6 +16,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "opl/core/format.h"
+#include "opl/geometry/rotation.h"
 #include "opl/vision/scene_frame.h"
 #include "opl/vision/tag_poses.h"
 
@@ -144,6 +145,14 @@ Status FrontEndOptions::Validate() const {
   if (num_threads < 0) {
     return Status::InvalidArgument("num_threads must be >= 0, got " +
                                    std::to_string(num_threads));
+  }
+  if (!(std::isfinite(max_camera_move_mm) && max_camera_move_mm > 0.0)) {
+    return Status::InvalidArgument("max_camera_move_mm must be finite and > 0, got " +
+                                   FormatNumber(max_camera_move_mm));
+  }
+  if (!(std::isfinite(max_camera_turn_mrad) && max_camera_turn_mrad > 0.0)) {
+    return Status::InvalidArgument("max_camera_turn_mrad must be finite and > 0, got " +
+                                   FormatNumber(max_camera_turn_mrad));
   }
   return Status::Ok();
 }
@@ -345,6 +354,7 @@ Status FrontEndRun::PlaceCameras() {
   // Bundle data: one intrinsics entry per image (held), one pose per placed
   // image, four corner points per placed tag.
   camera_of_image.assign(static_cast<size_t>(num_images), -1);
+  std::map<std::string, int> first_image_of_camera;  // one_pose_per_camera
   for (int i = 0; i < num_images; ++i) {
     const auto& pose = poses->cam_from_scene[static_cast<size_t>(i)];
     if (!pose) {
@@ -353,6 +363,32 @@ Status FrontEndRun::PlaceCameras() {
       continue;
     }
     result.images[static_cast<size_t>(i)].placed = true;
+    const std::string& name = scene.shots[static_cast<size_t>(i)].camera;
+    if (options.one_pose_per_camera) {
+      const auto first = first_image_of_camera.find(name);
+      if (first != first_image_of_camera.end()) {
+        // The same camera: its start poses must agree (it did not move).
+        const Rigid3d& a = *poses->cam_from_scene[static_cast<size_t>(first->second)];
+        const Eigen::Vector3d centre_a = a.Inverse().translation;
+        const Eigen::Vector3d centre_b = pose->Inverse().translation;
+        const double moved_mm = (centre_b - centre_a).norm();
+        const double turned_mrad =
+            1e3 * RotationAngleBetweenRad(a.RotationMatrix(), pose->RotationMatrix());
+        if (moved_mm > options.max_camera_move_mm || turned_mrad > options.max_camera_turn_mrad) {
+          return Status::InvalidArgument(
+              "camera '" + name + "' moved between shots " +
+              scene.shots[static_cast<size_t>(first->second)].file + " and " +
+              scene.shots[static_cast<size_t>(i)].file + " (" +
+              FormatNumber(std::round(10.0 * moved_mm) / 10.0, 8) + " mm, " +
+              FormatNumber(std::round(100.0 * turned_mrad) / 100.0, 8) +
+              " mrad, from the tags): one pose per camera needs cameras that stay put");
+        }
+        camera_of_image[static_cast<size_t>(i)] =
+            camera_of_image[static_cast<size_t>(first->second)];
+        continue;
+      }
+      first_image_of_camera[name] = i;
+    }
     camera_of_image[static_cast<size_t>(i)] = static_cast<int>(bundle.cameras.size());
     bundle.intrinsics.push_back(
         {scene.shots[static_cast<size_t>(i)].camera, intrinsics[static_cast<size_t>(i)], true});
@@ -388,10 +424,12 @@ Status FrontEndRun::PlaceCameras() {
       }
     }
   }
-  // Tags seen by fewer than two placed images cannot be adjusted.
+  // Tags seen by fewer than two placed images (two poses) cannot be adjusted.
   {
     std::map<int, std::set<int>> views_of_tag;
-    for (const TagObservationRef& r : tag_refs) views_of_tag[r.tag].insert(r.image);
+    for (const TagObservationRef& r : tag_refs) {
+      views_of_tag[r.tag].insert(camera_of_image[static_cast<size_t>(r.image)]);
+    }
     std::vector<BundleObservation> kept;
     std::vector<TagObservationRef> kept_refs;
     std::set<int> dropped;
@@ -483,6 +521,7 @@ Status FrontEndRun::AdjustTags() {
     }
     // Drop tag observations that stay far off.
     std::vector<BundleObservation> kept;
+    std::vector<TagObservationRef> kept_refs;
     for (size_t k = 0; k < adjusted->data.observations.size(); ++k) {
       const BundleObservation& ob = adjusted->data.observations[k];
       const Camera cam = adjusted->data.CameraAt(ob.camera);
@@ -491,6 +530,7 @@ Status FrontEndRun::AdjustTags() {
                       (px - ob.pixel_px).norm() <= options.max_tag_residual_px * std::sqrt(2.0);
       if (ok) {
         kept.push_back(ob);
+        kept_refs.push_back(tag_refs[k]);
       } else {
         result.images[static_cast<size_t>(tag_refs[k].image)].notes.push_back(
             "tag " + std::to_string(tag_refs[k].tag) + " corner " +
@@ -505,6 +545,7 @@ Status FrontEndRun::AdjustTags() {
       bundle.points[p].point_in_scene = adjusted->data.points[p].point_in_scene;
     }
     bundle.observations = std::move(kept);
+    tag_refs = std::move(kept_refs);
   }
   Progress("adjust tags", 1, 1);
   // Unobserved (constant) tag points would break the datum of the final
@@ -720,12 +761,6 @@ void FrontEndRun::PerImageRms() {
     std::vector<double> spot_sum(static_cast<size_t>(num_images), 0.0);
     std::vector<int> tag_n(static_cast<size_t>(num_images), 0);
     std::vector<int> spot_n(static_cast<size_t>(num_images), 0);
-    std::vector<int> image_of_camera(bundle.cameras.size(), -1);
-    for (int i = 0; i < num_images; ++i) {
-      if (camera_of_image[static_cast<size_t>(i)] >= 0) {
-        image_of_camera[static_cast<size_t>(camera_of_image[static_cast<size_t>(i)])] = i;
-      }
-    }
     for (size_t k = 0; k < adjusted->data.observations.size(); ++k) {
       const BundleObservation& ob = adjusted->data.observations[k];
       Eigen::Vector2d px;
@@ -733,7 +768,10 @@ void FrontEndRun::PerImageRms() {
               adjusted->data.points[static_cast<size_t>(ob.point)].point_in_scene, &px)) {
         continue;
       }
-      const size_t image = static_cast<size_t>(image_of_camera[static_cast<size_t>(ob.camera)]);
+      const int num_tag = num_tag_observations;
+      const size_t image = static_cast<size_t>(
+          static_cast<int>(k) < num_tag ? tag_refs[k].image
+                                        : spot_refs[k - static_cast<size_t>(num_tag)].image);
       const double e2 = (px - ob.pixel_px).squaredNorm();
       if (static_cast<int>(k) < num_tag_observations) {
         tag_sum[image] += e2;

@@ -88,6 +88,9 @@ TEST(CalibrateImagesCli, UsageErrors) {
                 " --targets t.csv --artifact T1,T2 --artifact-length-mm 800 --out " + out);
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_THAT(r.err, HasSubstr("--targets/--artifact are for --spots"));
+  r = Calibrate("--spots s.csv --one-pose-per-camera --out " + out);
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_THAT(r.err, HasSubstr("--one-pose-per-camera requires --images"));
   EXPECT_FALSE(std::filesystem::exists(out));
 }
 

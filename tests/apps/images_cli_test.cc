@@ -72,6 +72,9 @@ TEST(ImagesCli, UsageErrors) {
   r = Calibrate("--images d --scene " + kScene + " --out m.json");
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_THAT(r.err, HasSubstr("--images needs --design"));
+  r = Measure("--calibration c.json --spots s.csv --one-pose-per-camera");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_THAT(r.err, HasSubstr("--one-pose-per-camera requires --images"));
 }
 
 TEST(ImagesCli, MissingImagesAndBadSceneAreInputErrors) {

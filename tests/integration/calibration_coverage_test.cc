@@ -12,7 +12,11 @@
 // shared errors (camera poses, datum tags) were propagated, u(A-B) was 36 um
 // against a scatter of 63 um: RMS z 1.78 over seeds 1-10.
 //
-// N = 3 seeds by default (about 9 s each in Release on 2 cores); the test
+// Each session is calibrated twice: one camera pose per image (the default)
+// and one per camera (FrontEndOptions::one_pose_per_camera; the cameras do
+// not move in these renders), whose u is smaller; both must cover.
+//
+// N = 3 seeds by default (about 11 s each in Release on 2 cores); the test
 // asserts sum z^2 below the 99.5% point of chi^2_N. OPL_CAL_COVERAGE_SEEDS=<N>
 // and OPL_CAL_COVERAGE_FIRST_SEED=<k> run more by hand (docs/images.md,
 // "Calibration sessions", has the figures of 40 seeds).
@@ -63,11 +67,13 @@ TEST(CalibrationCoverage, NoisySessionsFallWithinTheirUncertainty) {
   ASSERT_TRUE(nominal.ok());
   ImageCalibrationOptions options;
   options.front_end.num_threads = 2;
+  ImageCalibrationOptions per_camera = options;
+  per_camera.front_end.one_pose_per_camera = true;
 
   const int n = EnvInt("OPL_CAL_COVERAGE_SEEDS", 3, 1);
   const int first = EnvInt("OPL_CAL_COVERAGE_FIRST_SEED", 1, 0);
-  double sum_z2 = 0.0;
-  int within_2u = 0;
+  double sum_z2 = 0.0, sum_z2_per_camera = 0.0;
+  int within_2u = 0, within_2u_per_camera = 0;
   for (int seed = first; seed < first + n; ++seed) {
     Scene scene = *base;
     scene.seed = static_cast<uint64_t>(seed);
@@ -76,6 +82,8 @@ TEST(CalibrationCoverage, NoisySessionsFallWithinTheirUncertainty) {
     Result<SceneRenderer> truth = test::RenderShotsTo(scene, dir, 2);
     ASSERT_TRUE(truth.ok()) << truth.status().ToString();
     Result<ImageCalibrationReport> r = CalibrateFromImages(scene, dir.string(), *nominal, options);
+    Result<ImageCalibrationReport> fixed =
+        CalibrateFromImages(scene, dir.string(), *nominal, per_camera);
     std::filesystem::remove_all(dir);
     ASSERT_TRUE(r.ok()) << "seed " << seed << ": " << r.status().ToString();
     EXPECT_EQ(r->identification.unassigned, 0) << "seed " << seed;
@@ -88,10 +96,23 @@ TEST(CalibrationCoverage, NoisySessionsFallWithinTheirUncertainty) {
     std::printf("seed %d: A-B %.4f mm, error %+.1f um, u %.1f um (own %.1f, shared %.1f), z %+.2f\n",
                 seed, sep.length_mm, 1e3 * (sep.length_mm - true_length), 1e3 * sep.u_length_mm,
                 1e3 * r->shared.u_separation_own_mm[0], 1e3 * r->shared.u_separation_shared_mm[0], z);
+    ASSERT_TRUE(fixed.ok()) << "seed " << seed << ", one pose per camera: " << fixed.status().ToString();
+    EXPECT_EQ(fixed->shared.components, 9 + 6 * static_cast<int>(scene.cameras.size()));
+    const Separation& f = fixed->calibration.calibration.separations.at(0);
+    const double zf = (f.length_mm - true_length) / f.u_length_mm;
+    sum_z2_per_camera += zf * zf;
+    within_2u_per_camera += std::abs(zf) <= 2.0;
+    std::printf("        one pose per camera: error %+.1f um, u %.1f um (own %.1f, shared %.1f), z %+.2f\n",
+                1e3 * (f.length_mm - true_length), 1e3 * f.u_length_mm,
+                1e3 * fixed->shared.u_separation_own_mm[0],
+                1e3 * fixed->shared.u_separation_shared_mm[0], zf);
   }
   std::printf("%d sessions: RMS z %.2f, %d within 2 u; sum z^2 %.1f (chi^2_%d 99.5%%: %.1f)\n", n,
               std::sqrt(sum_z2 / n), within_2u, sum_z2, n, ChiSquare995(n));
+  std::printf("one pose per camera: RMS z %.2f, %d within 2 u; sum z^2 %.1f\n",
+              std::sqrt(sum_z2_per_camera / n), within_2u_per_camera, sum_z2_per_camera);
   EXPECT_LT(sum_z2, ChiSquare995(n));
+  EXPECT_LT(sum_z2_per_camera, ChiSquare995(n));
 }
 
 }  // namespace

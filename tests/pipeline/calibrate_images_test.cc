@@ -186,6 +186,39 @@ TEST(CalibrateFromImages, NoiseFreeSessionGivesTheTrueModule) {
     std::printf("source %s: origin error %.3f mm\n", source.name.c_str(), origin_error.norm());
     EXPECT_LT(origin_error.norm(), 0.5) << source.name;
   }
+
+  // The same images with one pose per camera (the cameras did not move):
+  // 9 + 6 per camera shared components, the same module, a smaller u.
+  ImageCalibrationOptions per_camera = options;
+  per_camera.front_end.one_pose_per_camera = true;
+  Result<ImageCalibrationReport> fixed = CalibrateFromImages(scene, dir.string(), *nominal, per_camera);
+  ASSERT_TRUE(fixed.ok()) << fixed.status().ToString();
+  EXPECT_EQ(fixed->shared.components, 9 + 6 * static_cast<int>(scene.cameras.size()));
+  const Separation& fixed_sep = fixed->calibration.calibration.separations[0];
+  std::printf("one pose per camera: separation %.5f mm +- %.5f mm (own %.5f, shared %.5f)\n",
+              fixed_sep.length_mm, fixed_sep.u_length_mm, fixed->shared.u_separation_own_mm[0],
+              fixed->shared.u_separation_shared_mm[0]);
+  EXPECT_LT(std::abs(fixed_sep.length_mm - true_length), 0.02);
+  EXPECT_LT(std::abs(fixed_sep.length_mm - true_length), 3.0 * fixed_sep.u_length_mm);
+  EXPECT_LT(fixed->shared.u_separation_shared_mm[0], 0.6 * report->shared.u_separation_shared_mm[0]);
+  for (const ImageFindings& f : fixed->front_end.images) {
+    EXPECT_TRUE(f.placed) << f.file;
+    EXPECT_LT(f.tag_rms_px, 0.1) << f.file;
+    EXPECT_LT(f.spot_rms_px, 0.1) << f.file;
+  }
+  // A camera that "moved": cam1's shots relabelled as cam0's (cameras 1.8 m
+  // apart) are refused, naming the camera and two of its shots.
+  Scene moved = scene;
+  for (SceneShot& shot : moved.shots) {
+    if (shot.camera == "cam1") shot.camera = "cam0";
+  }
+  Result<ImageCalibrationReport> refused = CalibrateFromImages(moved, dir.string(), *nominal, per_camera);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_EQ(refused.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(refused.status().message().find("camera 'cam0' moved between shots s0_A_cam0.png and "
+                                            "s0_A_cam1.png"),
+            std::string::npos)
+      << refused.status().message();
   std::filesystem::remove_all(dir);
 }
 

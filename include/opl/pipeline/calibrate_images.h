@@ -28,7 +28,8 @@
 // shared_factor). With propagate_shared_errors (the default) each spot is
 // weighted by its own covariance and the shared part is added to the
 // calibration's covariances by AddSharedErrors (calibrate/shared_errors.h):
-// two re-solves per component, m = 9 + 6 per image. Without it, the spots
+// two re-solves per component, m = 9 + 6 per camera pose (one per image, or
+// one per camera with FrontEndOptions::one_pose_per_camera). Without it, the spots
 // are weighted by their whole covariance as if independent, and on noisy
 // images u(separation) comes out far too small: 36 um where seeds 1-10 of
 // the example session made noisy scatter by 63 um (docs/images.md,

@@ -91,6 +91,19 @@ struct FrontEndOptions {
   // when their own variance factor exceeds the limit. > 1.
   bool rescale_spot_covariances = true;
   double max_spot_variance_factor = 1.5;
+  // One pose per camera instead of one per image: the shots of a camera
+  // (SceneShot::camera) share its pose in the adjustment. For cameras that
+  // stay put the whole session (tripods, nothing touched between shots):
+  // every shot's tags then place the camera, and the pose error no longer
+  // differs from shot to shot, so it largely cancels between two grids
+  // photographed in different shots (a calibration's separations:
+  // docs/images.md, "Calibration sessions"). The start poses of a camera's
+  // shots (from their tags) must agree within max_camera_move_mm (centre)
+  // and max_camera_turn_mrad, else the front end refuses (InvalidArgument
+  // naming the camera and the two shots). Both > 0.
+  bool one_pose_per_camera = false;
+  double max_camera_move_mm = 5.0;
+  double max_camera_turn_mrad = 2.0;
   // Worker threads for the detection (and for CalibrateFromImages' re-solves
   // of the shared errors), >= 0; 0 = every core.
   int num_threads = 0;

@@ -351,8 +351,9 @@ Status FrontEndRun::PlaceCameras() {
   Progress("poses", 1, 1);
   for (const std::string& w : poses->warnings) result.warnings.push_back("start poses: " + w);
 
-  // Bundle data: one intrinsics entry per image (held), one pose per placed
-  // image, four corner points per placed tag.
+  // Bundle data: one intrinsics entry (held) and one pose per placed image
+  // (per camera with one_pose_per_camera), four corner points per placed
+  // tag.
   camera_of_image.assign(static_cast<size_t>(num_images), -1);
   std::map<std::string, int> first_image_of_camera;  // one_pose_per_camera
   for (int i = 0; i < num_images; ++i) {

@@ -1,13 +1,13 @@
 #include "opl/calibrate/shared_errors.h"
 
-#include <algorithm>
 #include <array>
-#include <atomic>
 #include <cmath>
 #include <map>
 #include <string>
-#include <thread>
+#include <utility>
+#include <vector>
 
+#include "core/parallel_for.h"
 #include "opl/geometry/rotation.h"
 
 namespace opl {
@@ -18,7 +18,7 @@ namespace {
 // separation its length.
 struct Solution {
   std::vector<Eigen::Matrix<double, 6, 1>> poses;
-  std::vector<Eigen::VectorXd> beams;  // 2 x beams, stacked (az, el)
+  std::vector<std::vector<Eigen::Vector2d>> beams;  // per source, per beam (az, el)
   std::vector<double> separations;
 };
 
@@ -37,19 +37,20 @@ Result<Solution> Difference(const ModuleCalibrationResult& base, const ModuleCal
     if (b.name != c.name) return mismatch("source '" + c.name + "' rather than '" + b.name + "'");
     const std::vector<Beam>& bb = b.pattern.beams();
     const std::vector<Beam>& cb = c.pattern.beams();
-    if (bb.size() != cb.size()) return mismatch("other beams of source '" + b.name + "'");
+    if (bb.size() != cb.size() || b.pattern.beams_per_side() != c.pattern.beams_per_side()) {
+      return mismatch("other beams of source '" + b.name + "'");
+    }
     Eigen::Matrix<double, 6, 1> pose;
     pose.head<3>() = LogSO3(c.calibration_from_source.RotationMatrix() *
                             b.calibration_from_source.RotationMatrix().transpose());
     pose.tail<3>() = c.calibration_from_source.translation - b.calibration_from_source.translation;
     s.poses.push_back(pose);
-    Eigen::VectorXd beams(2 * static_cast<Eigen::Index>(bb.size()));
+    std::vector<Eigen::Vector2d> beams;
     for (size_t k = 0; k < bb.size(); ++k) {
       if (bb[k].id != cb[k].id) return mismatch("other beams of source '" + b.name + "'");
-      beams(2 * static_cast<Eigen::Index>(k)) = cb[k].az_rad - bb[k].az_rad;
-      beams(2 * static_cast<Eigen::Index>(k) + 1) = cb[k].el_rad - bb[k].el_rad;
+      beams.emplace_back(cb[k].az_rad - bb[k].az_rad, cb[k].el_rad - bb[k].el_rad);
     }
-    s.beams.push_back(beams);
+    s.beams.push_back(std::move(beams));
   }
   for (size_t l = 0; l < base.calibration.separations.size(); ++l) {
     s.separations.push_back(r.calibration.separations[l].length_mm -
@@ -124,73 +125,55 @@ Result<SharedErrorSummary> AddSharedErrors(const std::vector<Spot>& spots,
   if (one_size && !calibration.sources.empty()) {
     resolve.beams_per_side = calibration.sources.front().pattern.beams_per_side();
   }
-  std::vector<Spot> moved(used.size());
-  std::vector<int> moved_slices(used.size());
+  std::vector<Spot> base(used.size());
+  std::vector<int> base_slices(used.size());
   for (size_t j = 0; j < used.size(); ++j) {
-    moved[j] = spots[used[j]];
-    moved_slices[j] = slices[used[j]];
+    base[j] = spots[used[j]];
+    base_slices[j] = slices[used[j]];
   }
 
-  const size_t num_sources = result->sources.size();
-  std::vector<Eigen::Matrix<double, 6, 6>> pose_add(num_sources,
-                                                    Eigen::Matrix<double, 6, 6>::Zero());
-  std::vector<Eigen::VectorXd> beam_var(num_sources);  // per beam (az, el) 2 x 2, stacked
-  std::vector<Eigen::VectorXd> beam_cov_azel(num_sources);
-  for (size_t s = 0; s < num_sources; ++s) {
-    const Eigen::Index n = static_cast<Eigen::Index>(calibration.sources[s].pattern.beams().size());
-    beam_var[s] = Eigen::VectorXd::Zero(2 * n);
-    beam_cov_azel[s] = Eigen::VectorXd::Zero(n);
-  }
-  std::vector<double> separation_add(calibration.separations.size(), 0.0);
   // g_k for every component; the 2m re-solves are independent, so they are
-  // shared out over the threads (each component's pair on one thread).
+  // shared out over the threads (a component's pair on one thread) and
+  // summed in component order.
   std::vector<std::array<Solution, 2>> sides(static_cast<size_t>(m));
   std::vector<Status> failures(static_cast<size_t>(m), Status::Ok());
-  const auto solve_component = [&](Eigen::Index k, std::vector<Spot>& work) {
+  internal::ParallelFor(static_cast<int>(m), num_threads, [&](int k) {
+    std::vector<Spot> moved = base;
     for (int sign = 0; sign < 2; ++sign) {
       const double f = sign == 0 ? 1.0 : -1.0;
       for (size_t j = 0; j < used.size(); ++j) {
-        work[j].observation.point_in_scene =
-            spots[used[j]].observation.point_in_scene + f * shared_factors[used[j]].col(k);
+        moved[j].observation.point_in_scene =
+            base[j].observation.point_in_scene + f * shared_factors[used[j]].col(k);
       }
       const std::string which = "shared errors, component " + std::to_string(k + 1) + " of " +
                                 std::to_string(m) + ": ";
-      Result<ModuleCalibrationResult> r = CalibrateModule(work, moved_slices, scaling, resolve);
-      if (!r.ok()) {
-        failures[static_cast<size_t>(k)] = Status(r.status().code(), which + r.status().message());
-        return;
-      }
-      Result<Solution> d = Difference(*result, *r);
+      Result<ModuleCalibrationResult> r = CalibrateModule(moved, base_slices, scaling, resolve);
+      Result<Solution> d = r.ok() ? Difference(*result, *r) : Result<Solution>(r.status());
       if (!d.ok()) {
         failures[static_cast<size_t>(k)] = Status(d.status().code(), which + d.status().message());
         return;
       }
       sides[static_cast<size_t>(k)][static_cast<size_t>(sign)] = std::move(*d);
     }
-  };
-  const int threads = static_cast<int>(
-      std::max<Eigen::Index>(1, std::min<Eigen::Index>(m, std::max(1, num_threads))));
-  std::atomic<Eigen::Index> next{0};
-  const auto worker = [&]() {
-    std::vector<Spot> own_moved = moved;
-    for (Eigen::Index k = next++; k < m; k = next++) solve_component(k, own_moved);
-  };
-  std::vector<std::thread> pool;
-  for (int t = 1; t < threads; ++t) pool.emplace_back(worker);
-  worker();
-  for (std::thread& t : pool) t.join();
+  });
   for (const Status& failure : failures) {
     if (!failure.ok()) return failure;
   }
-  for (Eigen::Index k = 0; k < m; ++k) {
-    const std::array<Solution, 2>& side = sides[static_cast<size_t>(k)];
+  const size_t num_sources = result->sources.size();
+  std::vector<Eigen::Matrix<double, 6, 6>> pose_add(num_sources,
+                                                    Eigen::Matrix<double, 6, 6>::Zero());
+  std::vector<std::vector<Eigen::Matrix2d>> beam_add(num_sources);  // per beam (az, el)
+  for (size_t s = 0; s < num_sources; ++s) {
+    beam_add[s].assign(calibration.sources[s].pattern.beams().size(), Eigen::Matrix2d::Zero());
+  }
+  std::vector<double> separation_add(calibration.separations.size(), 0.0);
+  for (const std::array<Solution, 2>& side : sides) {
     for (size_t s = 0; s < num_sources; ++s) {
       const Eigen::Matrix<double, 6, 1> g = 0.5 * (side[0].poses[s] - side[1].poses[s]);
       pose_add[s] += g * g.transpose();
-      const Eigen::VectorXd gb = 0.5 * (side[0].beams[s] - side[1].beams[s]);
-      beam_var[s] += gb.cwiseProduct(gb);
-      for (Eigen::Index b = 0; b < beam_cov_azel[s].size(); ++b) {
-        beam_cov_azel[s](b) += gb(2 * b) * gb(2 * b + 1);
+      for (size_t b = 0; b < beam_add[s].size(); ++b) {
+        const Eigen::Vector2d gb = 0.5 * (side[0].beams[s][b] - side[1].beams[s][b]);
+        beam_add[s][b] += gb * gb.transpose();
       }
     }
     for (size_t l = 0; l < separation_add.size(); ++l) {
@@ -207,14 +190,14 @@ Result<SharedErrorSummary> AddSharedErrors(const std::vector<Spot>& spots,
     source.pose_covariance += pose_add[s];
     std::vector<Beam> beams = source.calibration.pattern.beams();
     for (size_t b = 0; b < beams.size(); ++b) {
-      const Eigen::Index i = static_cast<Eigen::Index>(b);
-      Eigen::Matrix2d add;
-      add << beam_var[s](2 * i), beam_cov_azel[s](i), beam_cov_azel[s](i), beam_var[s](2 * i + 1);
-      beams[b].cov_azel_rad2 = beams[b].cov_azel_rad2.value_or(Eigen::Matrix2d::Zero()) + add;
+      beams[b].cov_azel_rad2 =
+          beams[b].cov_azel_rad2.value_or(Eigen::Matrix2d::Zero()) + beam_add[s][b];
     }
     Result<BeamPattern> pattern =
         BeamPattern::Create(source.calibration.pattern.beams_per_side(), std::move(beams));
-    if (!pattern.ok()) return Status(pattern.status().code(), "shared errors: " + pattern.status().message());
+    if (!pattern.ok()) {
+      return Status(pattern.status().code(), "shared errors: " + pattern.status().message());
+    }
     source.calibration.pattern = std::move(*pattern);
     if (source.calibration.quality) {
       SourceCalibrationQuality& q = *source.calibration.quality;

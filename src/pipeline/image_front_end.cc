@@ -15,6 +15,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "core/parallel_for.h"
 #include "opl/core/format.h"
 #include "opl/geometry/rotation.h"
 #include "opl/vision/scene_frame.h"
@@ -78,21 +79,6 @@ Eigen::Matrix2d CornerCovariance(const Eigen::Matrix2d& c) {
   // The edge fit's covariance when it has one, else 0.05 px per coordinate.
   if (c.allFinite() && c.determinant() > 1e-12) return c;
   return Eigen::Matrix2d::Identity() * 0.05 * 0.05;
-}
-
-void RunParallel(int count, int threads, const std::function<void(int)>& job) {
-  if (threads <= 1 || count <= 1) {
-    for (int i = 0; i < count; ++i) job(i);
-    return;
-  }
-  std::atomic<int> next{0};
-  std::vector<std::thread> pool;
-  for (int t = 0; t < std::min(threads, count); ++t) {
-    pool.emplace_back([&] {
-      for (int i = next++; i < count; i = next++) job(i);
-    });
-  }
-  for (std::thread& t : pool) t.join();
 }
 
 // sum_k r_k^T (C_k + extra I)^-1 r_k.
@@ -291,7 +277,7 @@ Status FrontEndRun::Detect() {
   threads = options.num_threads > 0
                 ? options.num_threads
                 : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  RunParallel(num_images, threads, [&](int i) {
+  internal::ParallelFor(num_images, threads, [&](int i) {
     const SceneShot& shot = scene.shots[static_cast<size_t>(i)];
     const std::string path = (std::filesystem::path(images_dir) / shot.file).string();
     Status& error = errors[static_cast<size_t>(i)];

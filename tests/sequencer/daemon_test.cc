@@ -610,7 +610,11 @@ TEST(SequencerDaemon, LaserHeldPastItsLimitIsSwitchedOff) {
 
 TEST(SequencerDaemon, CalibrationWaitsForNextSliceFromAnotherClient) {
   TempDir dir;
-  const json timings = {{"laser_warmup", 5}, {"blocker_settle", 5}, {"trigger_pulse", 1}, {"exposure", 5}, {"max_laser_on", 100}};
+  // A frame keeps a laser on ~10 ms. This test checks the flow, not the
+  // on-time limit (LaserHeldPastItsLimitIsSwitchedOff does): a limit far
+  // above a frame keeps a stall of the shared host from aborting the run
+  // (a 100 ms limit did, once: "laser a reached its on-time limit").
+  const json timings = {{"laser_warmup", 5}, {"blocker_settle", 5}, {"trigger_pulse", 1}, {"exposure", 5}, {"max_laser_on", 2000}};
   DaemonProcess d(dir, BaseConfig(dir, timings));
   ASSERT_TRUE(d.WaitReady()) << d.log();
   auto owner = Conn::Connect(d.socket());
@@ -626,7 +630,7 @@ TEST(SequencerDaemon, CalibrationWaitsForNextSliceFromAnotherClient) {
   EXPECT_EQ(s["state"], "waiting_operator");
   EXPECT_EQ(s["lasers"]["a"], false);
   EXPECT_EQ(s["lasers"]["b"], false);
-  SleepMs(150);  // longer than max_laser_on: nothing may be on while waiting
+  SleepMs(150);  // nothing may be on while waiting (the 2 s limit would not cut it yet)
   EXPECT_TRUE(LasersOff(d.FinalState()));
   ASSERT_TRUE(op->Request({{"cmd", "next_slice"}})["ok"].get<bool>());
   ASSERT_TRUE(owner->WaitEvent("done", 3000));
@@ -662,7 +666,11 @@ TEST(SequencerDaemon, OwnerDisconnectWhileWaitingForTheOperatorAbortsTheCalibrat
 
 TEST(SequencerDaemon, CliClientRunsAMeasurementAndReportsExitCodes) {
   TempDir dir;
-  const json timings = {{"laser_warmup", 5}, {"blocker_settle", 5}, {"trigger_pulse", 1}, {"exposure", 5}, {"max_laser_on", 100}};
+  // A frame keeps a laser on ~10 ms. This test checks the flow, not the
+  // on-time limit (LaserHeldPastItsLimitIsSwitchedOff does): a limit far
+  // above a frame keeps a stall of the shared host from aborting the run
+  // (a 100 ms limit did, once: "laser a reached its on-time limit").
+  const json timings = {{"laser_warmup", 5}, {"blocker_settle", 5}, {"trigger_pulse", 1}, {"exposure", 5}, {"max_laser_on", 2000}};
   DaemonProcess d(dir, BaseConfig(dir, timings));
   ASSERT_TRUE(d.WaitReady()) << d.log();
   pid_t p = Spawn({"client", "-s", d.socket(), "start", "measurement", "--no-stdin"}, dir.File("cli1.log"));

@@ -146,6 +146,16 @@ Window MakeWindow(double u, double v, int half, int width, int height) {
   return w;
 }
 
+// The symmetric part of a 2x2 block of an inverse: a solve against the
+// identity is symmetric only to rounding, and a covariance handed on must be
+// symmetric to the bit (MatchSpots and the bundle adjustment check it).
+Eigen::Matrix2d SymmetricPart(const Eigen::Matrix2d& m) { return 0.5 * (m + m.transpose()); }
+
+// A symmetric 2x2 matrix that is finite and positive definite.
+bool IsPositiveDefinite(const Eigen::Matrix2d& c) {
+  return c.allFinite() && c(0, 0) > 0 && c(1, 1) > 0 && c(0, 0) * c(1, 1) - c(0, 1) * c(1, 0) > 0;
+}
+
 struct CentroidResult {
   double u = 0, v = 0, flux = 0, peak = 0;
   Eigen::Matrix2d shape = Eigen::Matrix2d::Zero();
@@ -314,8 +324,8 @@ FitResult FitGaussian(const std::vector<Pixel>& px, const Vec7& start, const Win
   out.amplitude = t(2);
   out.background = t(3);
   out.shape = shape;
-  out.covariance = out.reduced_chi2 * inv.topLeftCorner<2, 2>();
-  out.ok = out.covariance.allFinite() && out.covariance(0, 0) > 0 && out.covariance(1, 1) > 0;
+  out.covariance = out.reduced_chi2 * SymmetricPart(inv.topLeftCorner<2, 2>());
+  out.ok = IsPositiveDefinite(out.covariance);
   return out;
 }
 
@@ -413,8 +423,8 @@ void SpeckleCovariance(const std::vector<Pixel>& px, const std::vector<double>& 
   if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return;
   const Mat7 Hinv = ldlt.solve(Mat7::Identity());
   const Mat7 C = Hinv * (0.5 * (M + M.transpose())) * Hinv;
-  const Eigen::Matrix2d cov = C.topLeftCorner<2, 2>();
-  if (cov.allFinite() && cov(0, 0) > 0 && cov(1, 1) > 0) {
+  const Eigen::Matrix2d cov = SymmetricPart(C.topLeftCorner<2, 2>());
+  if (IsPositiveDefinite(cov)) {
     fit->covariance = cov;
     fit->speckle_grain = std::sqrt(g2);
   }

@@ -60,7 +60,9 @@
 //     exp(-d^2 / (2 g^2)), g the grain (speckle_grain_px, or estimated from
 //     the residuals' lag-1 correlation: then an underestimate, see
 //     SpotDetectionOptions::speckle_contrast). For the centroid fallback it
-//     is the propagated pixel noise.
+//     is the propagated pixel noise. Every covariance is symmetric to the
+//     bit; a fit whose covariance is not positive definite is not used (the
+//     centroid is reported, flagged kSpotFitFailed).
 //
 // Errors (Status): InvalidArgument for an empty image, a wrong type or
 // channel count (the message names the type, e.g. "CV_32FC1"), or bad
@@ -136,7 +138,8 @@ struct SpotDetectionOptions {
 // Flags of a detected spot (bit mask).
 enum SpotFlag : uint32_t {
   kSpotSaturated = 1u << 0,   // at least one saturated pixel (excluded from the fit)
-  kSpotFitFailed = 1u << 1,   // the fit did not converge or left the window: centroid reported
+  kSpotFitFailed = 1u << 1,   // the fit did not converge, left the window or gave no positive
+                              // definite covariance: centroid reported
   kSpotPoorFit = 1u << 2,     // reduced chi^2 above 4 (speckle, blemish, wrong model)
   kSpotNearBorder = 1u << 3,  // fit window clipped by the image border
 };

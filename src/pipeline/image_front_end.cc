@@ -598,9 +598,14 @@ Status FrontEndRun::MatchGroups() {
       for (const DetectedSpot& s : data[static_cast<size_t>(i)].spots) {
         SpotInView v;
         v.pixel_px = Eigen::Vector2d(s.u_px, s.v_px);
+        // DetectSpots hands on symmetric positive definite covariances (or a
+        // centroid's, zero on a noise-free image); anything else is replaced
+        // by the floor rather than refused by the matcher.
         Eigen::Matrix2d c = s.covariance_px2;
         const double floor2 = options.min_spot_sigma_px * options.min_spot_sigma_px;
-        if (!(c.allFinite() && c.determinant() > 0.0)) c = Eigen::Matrix2d::Identity() * floor2;
+        if (!(c.allFinite() && c(0, 1) == c(1, 0) && c(0, 0) > 0.0 && c.determinant() > 0.0)) {
+          c = Eigen::Matrix2d::Identity() * floor2;
+        }
         c += Eigen::Matrix2d::Identity() * floor2;
         v.covariance_px2 = c + spot_extra_var_px2 * Eigen::Matrix2d::Identity();
         views.push_back(v);

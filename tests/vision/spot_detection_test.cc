@@ -427,7 +427,8 @@ TEST(SpotDetection, CovariancesAreSymmetricPositiveDefinite) {
   int faint_blobs = 0;
   for (const DetectedSpot& s : r->spots) {
     const Eigen::Matrix2d& c = s.covariance_px2;
-    const std::string where = "spot at (" + FormatNumber(s.u_px, 6) + ", " + FormatNumber(s.v_px, 6) + ")";
+    const std::string where =
+        "spot at (" + FormatNumber(s.u_px, 6) + ", " + FormatNumber(s.v_px, 6) + ")";
     EXPECT_EQ(c(0, 1), c(1, 0)) << where;
     EXPECT_TRUE(c.allFinite() && c(0, 0) > 0 && c(1, 1) > 0 && c.determinant() > 0)
         << where << ": " << c;

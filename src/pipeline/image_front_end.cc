@@ -598,9 +598,9 @@ Status FrontEndRun::MatchGroups() {
       for (const DetectedSpot& s : data[static_cast<size_t>(i)].spots) {
         SpotInView v;
         v.pixel_px = Eigen::Vector2d(s.u_px, s.v_px);
-        // DetectSpots hands on symmetric positive definite covariances (or a
-        // centroid's, zero on a noise-free image); anything else is replaced
-        // by the floor rather than refused by the matcher.
+        // DetectSpots hands on symmetric covariances, positive definite but
+        // for a degenerate centroid's; anything else is replaced by the
+        // floor rather than refused by the matcher.
         Eigen::Matrix2d c = s.covariance_px2;
         const double floor2 = options.min_spot_sigma_px * options.min_spot_sigma_px;
         if (!(c.allFinite() && c(0, 1) == c(1, 0) && c(0, 0) > 0.0 && c.determinant() > 0.0)) {

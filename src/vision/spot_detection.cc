@@ -14,6 +14,11 @@
 namespace opl {
 namespace {
 
+// Lag of the pixel differences that measure the smoothed image's noise [px]
+// (at least): past the 8 x 8 blocks of JPEG, a Bayer pattern's
+// interpolation and the smoothing kernel itself.
+constexpr int kMinNoiseLagPx = 8;
+
 // A coarse grid of per-block values, interpolated bilinearly between block
 // centres (clamped beyond the outer centres).
 class BlockGrid {
@@ -566,8 +571,48 @@ Result<SpotDetectionResult> DetectSpots(const cv::Mat& image, const SpotDetectio
   } else {
     img.convertTo(smooth, CV_32F);
   }
-  cv::Mat thr_blocks = bg_blocks + noise_blocks * (options.threshold_sigma * noise_gain);
-  result.threshold_dn = options.threshold_sigma * noise_gain * result.noise_dn;
+  // The smoothed image's own noise per block, measured rather than
+  // predicted: 1.4826 MAD of differences at a lag beyond the noise's
+  // correlation length. For white noise it equals noise_gain times the
+  // pixel noise; for correlated noise (JPEG's 8 x 8 blocks, demosaicing,
+  // denoising) the white-noise prediction from adjacent pixels is several
+  // times too small and the threshold would cut through the noise. The
+  // threshold uses the larger of the two.
+  cv::Mat smooth_noise_blocks(nby, nbx, CV_32F);
+  {
+    const int lag = std::max(
+        kMinNoiseLagPx, 2 * static_cast<int>(std::ceil(3.0 * options.smoothing_sigma_px)));
+    for (int by = 0; by < nby; ++by) {
+      for (int bx = 0; bx < nbx; ++bx) {
+        const int x0 = bx * B, x1 = std::min(W, x0 + B);
+        const int y0 = by * B, y1 = std::min(H, y0 + B);
+        diffs.clear();
+        for (int y = y0; y < y1; y += stride) {
+          const float* row = smooth.ptr<float>(y);
+          for (int x = x0; x < x1 && x + lag < W; x += stride) {
+            diffs.push_back(std::fabs(row[x + lag] - row[x]));
+          }
+        }
+        const double sigma = diffs.empty() ? 0.0 : 1.4826 * Median(&diffs) / std::sqrt(2.0);
+        smooth_noise_blocks.at<float>(by, bx) = static_cast<float>(
+            std::max(sigma, noise_gain * noise_blocks.at<float>(by, bx)));
+      }
+    }
+    if (nbx >= 5 && nby >= 5) {
+      cv::Mat filtered;
+      cv::medianBlur(smooth_noise_blocks, filtered, 5);
+      smooth_noise_blocks = filtered;
+    } else if (nbx >= 3 && nby >= 3) {
+      cv::Mat filtered;
+      cv::medianBlur(smooth_noise_blocks, filtered, 3);
+      smooth_noise_blocks = filtered;
+    }
+  }
+  cv::Mat thr_blocks = bg_blocks + smooth_noise_blocks * options.threshold_sigma;
+  {
+    std::vector<float> n(smooth_noise_blocks.begin<float>(), smooth_noise_blocks.end<float>());
+    result.threshold_dn = options.threshold_sigma * Median(&n);
+  }
   const BlockGrid bg(bg_blocks, B, W, H);
   const BlockGrid noise(noise_blocks, B, W, H);
   BlockGrid thr(thr_blocks, B, W, H);

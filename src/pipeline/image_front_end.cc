@@ -12,6 +12,7 @@
 #include <sstream>
 #include <thread>
 
+#include <Eigen/Eigenvalues>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -27,7 +28,17 @@ namespace {
 struct ImageData {
   std::vector<TagDetection> tags;
   std::vector<DetectedSpot> spots;
+  int blobs_rejected = 0;  // FrontEndOptions' spot gates
 };
+
+// The spot gates of FrontEndOptions (min_spot_snr, max_spot_center_sigma_px).
+bool IsLaserSpot(const DetectedSpot& s, const FrontEndOptions& options) {
+  if (!(s.snr >= options.min_spot_snr)) return false;
+  const Eigen::Matrix2d& c = s.covariance_px2;
+  if (!c.allFinite()) return false;
+  const double largest = Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(c).eigenvalues()(1);
+  return largest <= options.max_spot_center_sigma_px * options.max_spot_center_sigma_px;
+}
 
 // Reads a shot's image as one grey channel, 8 or 16 bit.
 Result<cv::Mat> ReadShotImage(const std::string& path, const CameraIntrinsics& k,
@@ -128,6 +139,19 @@ Status FrontEndOptions::Validate() const {
     return Status::InvalidArgument("min_spot_sigma_px must be finite and >= 0, got " +
                                    FormatNumber(min_spot_sigma_px));
   }
+  if (!(std::isfinite(min_tag_triangulation_angle_deg) && min_tag_triangulation_angle_deg > 0.0 &&
+        min_tag_triangulation_angle_deg < 90.0)) {
+    return Status::InvalidArgument("min_tag_triangulation_angle_deg must be in (0, 90), got " +
+                                   FormatNumber(min_tag_triangulation_angle_deg));
+  }
+  if (!(std::isfinite(min_spot_snr) && min_spot_snr >= 0.0)) {
+    return Status::InvalidArgument("min_spot_snr must be finite and >= 0, got " +
+                                   FormatNumber(min_spot_snr));
+  }
+  if (!(std::isfinite(max_spot_center_sigma_px) && max_spot_center_sigma_px > 0.0)) {
+    return Status::InvalidArgument("max_spot_center_sigma_px must be finite and > 0, got " +
+                                   FormatNumber(max_spot_center_sigma_px));
+  }
   if (num_threads < 0) {
     return Status::InvalidArgument("num_threads must be >= 0, got " +
                                    std::to_string(num_threads));
@@ -148,7 +172,8 @@ std::string FrontEndResult::ToText() const {
   out << "images:\n";
   for (const ImageFindings& f : images) {
     out << "  " << f.file << " (" << f.camera << "): " << f.tag_ids.size() << " tags, "
-        << f.spots_detected << " spots, " << f.spots_matched << " matched";
+        << f.spots_detected << " spots (" << f.blobs_rejected << " other blobs), "
+        << f.spots_matched << " matched";
     if (f.placed) {
       out << ", RMS tags " << FormatNumber(f.tag_rms_px, 3) << " px, spots "
           << FormatNumber(f.spot_rms_px, 3) << " px";
@@ -217,6 +242,15 @@ struct FrontEndRun {
   void Init();
   Status Detect();            // 1-2
   Status PlaceCameras();      // 3, and the tags' bundle data
+  // A tag whose corners are not seen from two camera positions at least
+  // min_tag_triangulation_angle_deg apart (two images of one camera
+  // position, or a corner dropped as an outlier) leaves its corners' depth
+  // undetermined: its observations are removed and its points made
+  // constant (AdjustTags removes them), with a warning.
+  void DropTagsSeenFromOnePosition();
+  // An image left without a tag observation is not held by the tags: it is
+  // reported not placed (camera_of_image -1), with a note saying why.
+  void UnplaceImagesWithoutTags();
   Status ChooseFrameTags();
   Status AdjustTags();        // 4
   void GroupShots();          // 5: the exposure groups
@@ -304,7 +338,12 @@ Status FrontEndRun::Detect() {
       for (const TagDetection& t : d.tags) {
         in_tag = in_tag || InsideTag(t, Eigen::Vector2d(s.u_px, s.v_px), 0.3);
       }
-      if (!in_tag) d.spots.push_back(s);
+      if (in_tag) continue;
+      if (IsLaserSpot(s, options)) {
+        d.spots.push_back(s);
+      } else {
+        ++d.blobs_rejected;
+      }
     }
     std::lock_guard<std::mutex> lock(progress_mutex);
     Progress("detect", ++done, num_images);
@@ -315,6 +354,7 @@ Status FrontEndRun::Detect() {
     ImageFindings& f = result.images[static_cast<size_t>(i)];
     for (const TagDetection& t : data[static_cast<size_t>(i)].tags) f.tag_ids.push_back(t.id);
     f.spots_detected = static_cast<int>(data[static_cast<size_t>(i)].spots.size());
+    f.blobs_rejected = data[static_cast<size_t>(i)].blobs_rejected;
     if (f.tag_ids.empty()) f.notes.push_back("no tag found");
     images_with_tags += f.tag_ids.empty() ? 0 : 1;
   }
@@ -411,34 +451,100 @@ Status FrontEndRun::PlaceCameras() {
       }
     }
   }
-  // Tags seen by fewer than two placed images (two poses) cannot be adjusted.
-  {
-    std::map<int, std::set<int>> views_of_tag;
-    for (const TagObservationRef& r : tag_refs) {
-      views_of_tag[r.tag].insert(camera_of_image[static_cast<size_t>(r.image)]);
-    }
-    std::vector<BundleObservation> kept;
-    std::vector<TagObservationRef> kept_refs;
-    std::set<int> dropped;
-    for (size_t o = 0; o < tag_refs.size(); ++o) {
-      if (views_of_tag[tag_refs[o].tag].size() >= 2) {
-        kept.push_back(bundle.observations[o]);
-        kept_refs.push_back(tag_refs[o]);
-      } else {
-        dropped.insert(tag_refs[o].tag);
-      }
-    }
-    for (int id : dropped) {
-      result.warnings.push_back("tag " + std::to_string(id) +
-                                ": seen in one placed image only, not used");
-      // Its points stay in the bundle unobserved: make them constant.
-      for (int c = 0; c < 4; ++c) bundle.points[static_cast<size_t>(first_corner_point[id] + c)].constant = true;
-      first_corner_point.erase(id);
-    }
-    bundle.observations = std::move(kept);
-    tag_refs = std::move(kept_refs);
-  }
+  DropTagsSeenFromOnePosition();
+  UnplaceImagesWithoutTags();
   return Status::Ok();
+}
+
+void FrontEndRun::DropTagsSeenFromOnePosition() {
+  // The cameras (bundle indices) that see each corner point, and each tag's
+  // centre (the mean of its corner points).
+  std::map<int, std::set<int>> cameras_of_point;
+  for (size_t o = 0; o < tag_refs.size(); ++o) {
+    const BundleObservation& ob = bundle.observations[o];
+    cameras_of_point[ob.point].insert(ob.camera);
+  }
+  const double min_angle_rad = options.min_tag_triangulation_angle_deg * M_PI / 180.0;
+  std::set<int> dropped;
+  std::map<int, double> best_angle_deg;
+  for (const auto& [id, first] : first_corner_point) {
+    Eigen::Vector3d center = Eigen::Vector3d::Zero();
+    for (int c = 0; c < 4; ++c) center += bundle.points[static_cast<size_t>(first + c)].point_in_scene / 4.0;
+    // Every corner needs two rays at the angle (the weakest corner decides).
+    double weakest = M_PI;
+    for (int c = 0; c < 4; ++c) {
+      const auto found = cameras_of_point.find(first + c);
+      double widest = 0.0;
+      if (found != cameras_of_point.end()) {
+        std::vector<Eigen::Vector3d> rays;
+        for (int camera : found->second) {
+          const Eigen::Vector3d centre =
+              bundle.cameras[static_cast<size_t>(camera)].cam_from_scene.Inverse().translation;
+          rays.push_back((centre - center).normalized());
+        }
+        for (size_t a = 0; a < rays.size(); ++a) {
+          for (size_t b = a + 1; b < rays.size(); ++b) {
+            widest = std::max(widest, std::acos(std::clamp(rays[a].dot(rays[b]), -1.0, 1.0)));
+          }
+        }
+      }
+      weakest = std::min(weakest, widest);
+    }
+    if (weakest < min_angle_rad) {
+      dropped.insert(id);
+      best_angle_deg[id] = weakest * 180.0 / M_PI;
+    }
+  }
+  if (dropped.empty()) return;
+  std::vector<BundleObservation> kept;
+  std::vector<TagObservationRef> kept_refs;
+  std::map<int, std::set<std::string>> images_of_dropped;
+  for (size_t o = 0; o < tag_refs.size(); ++o) {
+    if (dropped.count(tag_refs[o].tag)) {
+      images_of_dropped[tag_refs[o].tag].insert(
+          scene.shots[static_cast<size_t>(tag_refs[o].image)].file);
+      continue;
+    }
+    kept.push_back(bundle.observations[o]);
+    kept_refs.push_back(tag_refs[o]);
+  }
+  // Spot observations (none yet when called before the matching) follow.
+  for (size_t o = tag_refs.size(); o < bundle.observations.size(); ++o) {
+    kept.push_back(bundle.observations[o]);
+  }
+  for (int id : dropped) {
+    std::string images;
+    for (const std::string& f : images_of_dropped[id]) images += (images.empty() ? "" : ", ") + f;
+    const double angle = best_angle_deg[id];
+    std::string detail = images;
+    if (angle > 0.0) {
+      detail += (detail.empty() ? "" : "; ") + std::string("rays meet at ") +
+                FormatNumber(angle, 2) + " deg, at least " +
+                FormatNumber(options.min_tag_triangulation_angle_deg) + " deg needed";
+    }
+    result.warnings.push_back("tag " + std::to_string(id) +
+                              ": not used, seen from one camera position only" +
+                              (detail.empty() ? std::string() : " (" + detail + ")"));
+    for (int c = 0; c < 4; ++c) {
+      bundle.points[static_cast<size_t>(first_corner_point[id] + c)].constant = true;
+    }
+    first_corner_point.erase(id);
+  }
+  bundle.observations = std::move(kept);
+  tag_refs = std::move(kept_refs);
+}
+
+void FrontEndRun::UnplaceImagesWithoutTags() {
+  std::set<int> held;  // bundle cameras with a tag observation
+  for (size_t o = 0; o < tag_refs.size(); ++o) held.insert(bundle.observations[o].camera);
+  for (int i = 0; i < num_images; ++i) {
+    const int camera = camera_of_image[static_cast<size_t>(i)];
+    if (camera < 0 || held.count(camera)) continue;
+    camera_of_image[static_cast<size_t>(i)] = -1;
+    ImageFindings& f = result.images[static_cast<size_t>(i)];
+    f.placed = false;
+    f.notes.push_back("not placed: none of its tags is seen from another camera position");
+  }
 }
 
 Status FrontEndRun::ChooseFrameTags() {
@@ -450,7 +556,8 @@ Status FrontEndRun::ChooseFrameTags() {
       if (!first_corner_point.count(frame_tags[static_cast<size_t>(r)])) {
         return Status::NoSolution("frame " + std::string(role[r]) + " tag " +
                                   std::to_string(frame_tags[static_cast<size_t>(r)]) +
-                                  " was not found in two placed images");
+                                  " is not seen from two camera positions (placed images whose rays "
+                                  "meet at min_tag_triangulation_angle_deg or more)");
       }
     }
   } else {
@@ -492,7 +599,7 @@ Status FrontEndRun::AdjustTags() {
   const int reference = poses->reference_tag;
   if (!first_corner_point.count(reference)) {
     return Status::NoSolution("the reference tag " + std::to_string(reference) +
-                              " is not seen in two placed images");
+                              " is not seen from two camera positions");
   }
   {
     BundleData tags_only = bundle;
@@ -533,6 +640,18 @@ Status FrontEndRun::AdjustTags() {
     }
     bundle.observations = std::move(kept);
     tag_refs = std::move(kept_refs);
+  }
+  // Dropped corners may leave a tag seen from one position only.
+  DropTagsSeenFromOnePosition();
+  UnplaceImagesWithoutTags();
+  const char* role[3] = {"origin", "axis", "plane"};
+  for (int r = 0; r < 3; ++r) {
+    if (!first_corner_point.count(frame_tags[static_cast<size_t>(r)])) {
+      return Status::NoSolution("frame " + std::string(role[r]) + " tag " +
+                                std::to_string(frame_tags[static_cast<size_t>(r)]) +
+                                " is not seen from two camera positions once its outlying "
+                                "corners are dropped");
+    }
   }
   Progress("adjust tags", 1, 1);
   // Unobserved (constant) tag points would break the datum of the final

@@ -46,6 +46,7 @@ std::string ImageMeasureReport::ToJson() const {
                       {"camera", f.camera},
                       {"tags", f.tag_ids},
                       {"spots_detected", f.spots_detected},
+                      {"blobs_rejected", f.blobs_rejected},
                       {"spots_matched", f.spots_matched},
                       {"placed", f.placed},
                       {"tag_rms_px", f.tag_rms_px},

@@ -73,6 +73,24 @@ struct FrontEndOptions {
   // A tag corner observation whose residual after the first bundle
   // adjustment exceeds this is dropped [px], > 0.
   double max_tag_residual_px = 2.0;
+  // A tag is adjusted only when each of its corners is seen from two
+  // camera positions whose rays meet there at this angle or more [deg], in
+  // (0, 90). Two images from one position (one pose per image, a camera
+  // that shot each grid from where it stood) do not fix a corner's depth;
+  // such a tag is reported in the warnings and not used.
+  double min_tag_triangulation_angle_deg = 1.0;
+  // Detections that are not laser spots, dropped before matching: a blob
+  // whose peak is below min_spot_snr times the background noise (noise
+  // patches, fragments along wall edges and shadows, whose fit fails and
+  // whose centroid is then spuriously precise), or whose centre's standard
+  // deviation (the larger of the covariance's two) exceeds
+  // max_spot_center_sigma_px (a hot pixel or a spike: its Gaussian fit
+  // leaves the centre undetermined, 1e1-1e7 px, and such a detection would
+  // fit any epipolar gate). Laser spots measured on renders by OPL's lab and
+  // by an independent renderer have SNR 40-250 and centre sigmas of
+  // 0.01-0.3 px. min_spot_snr >= 0, max_spot_center_sigma_px > 0.
+  double min_spot_snr = 10.0;
+  double max_spot_center_sigma_px = 1.0;
   // Floor of a spot's pixel standard deviation [px], >= 0: the detector's
   // covariance is enlarged to at least this (it underestimates speckle).
   double min_spot_sigma_px = 0.02;
@@ -119,7 +137,8 @@ struct ImageFindings {
   std::string file;    // as in the scene's shot
   std::string camera;  // its camera's name
   std::vector<int> tag_ids;       // tags detected (increasing id)
-  int spots_detected = 0;         // laser spots detected (outside tags)
+  int spots_detected = 0;         // laser spots detected (outside tags, past the gates)
+  int blobs_rejected = 0;         // detections outside tags that failed the spot gates
   int spots_matched = 0;          // of those, in a 3D spot
   bool placed = false;            // its pose was found
   double tag_rms_px = 0.0;        // RMS tag corner residual after the adjustment

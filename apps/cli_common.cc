@@ -4,6 +4,8 @@
 #include <exception>
 #include <iostream>
 
+#include <glog/logging.h>
+
 namespace opl {
 namespace cli {
 
@@ -55,7 +57,22 @@ std::optional<int> ParseCommandLine(CLI::App& app, int argc, char** argv) {
   return std::nullopt;
 }
 
+void QuietSolverLogging(const std::string& tool) {
+  // glog keeps the pointer it is given: a string that outlives main.
+  static const std::string* const name = new std::string(tool);
+  static const bool initialised = [] {
+    FLAGS_logtostderr = true;  // never log files in /tmp
+    FLAGS_minloglevel = google::GLOG_FATAL;
+    google::InitGoogleLogging(name->c_str());
+    return true;
+  }();
+  (void)initialised;
+}
+
+void ShowSolverLogging() { FLAGS_minloglevel = google::GLOG_INFO; }
+
 int RunTool(const std::string& tool, const std::function<int()>& body) {
+  QuietSolverLogging(tool);
   try {
     return body();
   } catch (const std::exception& e) {

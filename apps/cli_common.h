@@ -44,7 +44,14 @@ int FailWrite(const std::string& tool, const Status& status);
 // usage error (printed on stderr as "<tool>: <error> (see --help)").
 std::optional<int> ParseCommandLine(CLI::App& app, int argc, char** argv);
 
-// Runs `body`, turning an escaping exception into "<tool>: internal error:
+// Ceres reports through glog (warnings such as "Linear solver failure"):
+// silenced in every tool, whose own messages say what failed.
+// QuietSolverLogging (called by RunTool) initialises glog logging to stderr
+// only at FATAL; ShowSolverLogging (a tool's --verbose) lets every level
+// through.
+void QuietSolverLogging(const std::string& tool);
+void ShowSolverLogging();
+// Runs `body` (after QuietSolverLogging), turning an escaping exception into "<tool>: internal error:
 // ..." and kExitInternalError. The library itself does not throw on bad input;
 // this is a last line of defence (e.g. std::bad_alloc).
 int RunTool(const std::string& tool, const std::function<int()>& body);

@@ -5,6 +5,7 @@
 // exit codes.
 #include <cmath>
 #include <filesystem>
+#include <iostream>
 #include <string>
 #include <vector>
 
@@ -49,6 +50,7 @@ struct Args {
   std::string scene_path;
   int threads = 0;
   bool one_pose_per_camera = false;
+  bool verbose = false;
 };
 
 // Reads the artifact's two targets from the targets file and computes the
@@ -172,6 +174,7 @@ int RunImages(const Args& args) {
       CalibrateFromImages(*scene, args.images_dir, *nominal, options);
   bar.Finish();
   if (!report.ok()) return cli::FailInput(kTool, report.status());
+  if (args.verbose) std::cerr << report->front_end.bundle_report;
   return WriteOutputs(args, report->calibration, report->ToText());
 }
 
@@ -220,6 +223,9 @@ int Run(int argc, char** argv) {
                  "With --images: threads for the detection and for the re-solves that\n"
                  "carry the spots' shared errors, >= 0; 0 = every core")
       ->capture_default_str();
+  app.add_flag("--verbose", args.verbose,
+               "Show the solvers' own messages (Ceres, on stderr; silenced by default) and,\n"
+               "with --images, the bundle adjustment's report on stderr");
   app.add_flag("--one-pose-per-camera", args.one_pose_per_camera,
                "With --images: the shots of one camera share one pose (cameras on tripods,\n"
                "untouched for the whole session); refused when a camera's shots place it\n"
@@ -285,6 +291,7 @@ int Run(int argc, char** argv) {
       "  opl_calibrate --images session/ --scene session.json --design design.json \\\n"
       "      --out module.json\n"));
   if (std::optional<int> code = cli::ParseCommandLine(app, argc, argv)) return *code;
+  if (args.verbose) cli::ShowSolverLogging();
   if (args.spots.path.empty() == args.images_dir.empty()) {
     return cli::Fail(kTool, "give either --spots or --images (with --scene) (see --help)",
                      cli::kExitUsage);

@@ -2,6 +2,7 @@
 // sources (docs/cli.md). The work is done by opl::MeasureScale
 // (include/opl/pipeline/measure.h); this file parses options, reads files,
 // prints and maps errors to exit codes.
+#include <iostream>
 #include <string>
 
 #include "cli_common.h"
@@ -31,6 +32,7 @@ struct Args {
   std::string spots_out_path;
   int threads = 0;
   bool one_pose_per_camera = false;
+  bool verbose = false;
 };
 
 // opl_measure --images: the image front end, then the measurement.
@@ -63,6 +65,7 @@ int RunImages(const Args& args) {
       MeasureScaleFromImages(*scene, args.images_dir, *calibration, options);
   bar.Finish();
   if (!report.ok()) return cli::FailInput(kTool, report.status());
+  if (args.verbose) std::cerr << report->front_end.bundle_report;
 
   std::string spots_csv;
   if (!args.spots_out_path.empty()) {
@@ -155,6 +158,9 @@ int Run(int argc, char** argv) {
       ->type_name("FILE");
   app.add_flag("--json", args.json,
                "Print one JSON object (format opl.measure_report) instead of the text summary");
+  app.add_flag("--verbose", args.verbose,
+               "Show the solvers' own messages (Ceres, on stderr; silenced by default) and,\n"
+               "with --images, the bundle adjustment's report on stderr");
   CLI::Option* apply =
       app.add_option("--apply", args.apply_path,
                      "Points CSV with x,y,z columns to scale by s (other columns copied verbatim)")
@@ -172,6 +178,7 @@ int Run(int argc, char** argv) {
       "      --skip-rows 1 --identified sorted.csv\n"
       "  opl_measure --calibration cal.json --images shots/ --scene scene.json\n"));
   if (std::optional<int> code = opl::cli::ParseCommandLine(app, argc, argv)) return *code;
+  if (args.verbose) cli::ShowSolverLogging();
   if (args.spots.path.empty() == args.images_dir.empty()) {
     return cli::Fail(kTool, "give either --spots or --images (with --scene) (see --help)",
                      cli::kExitUsage);

@@ -784,6 +784,12 @@ Status FrontEndRun::AdjustAll() {
     return Status::NoSolution("bundle adjustment of tags and spots: " +
                               adjusted.status().message());
   }
+  // Without the points' covariances nothing downstream has an uncertainty:
+  // say why here rather than let the locate blame a spot.
+  if (adjusted->point_covariances.empty()) {
+    return Status::NoSolution("bundle adjustment of tags and spots: point covariances " +
+                              adjusted->covariance_method);
+  }
   return Status::Ok();
 }
 

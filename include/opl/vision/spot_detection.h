@@ -18,8 +18,10 @@
 //  2. Threshold. The background-subtracted image is smoothed by a Gaussian of
 //     smoothing_sigma_px (a matched filter for spots of a few px); a pixel is
 //     "on" when the smoothed value exceeds threshold_sigma times the noise of
-//     the smoothed image (the block noise times the filter's white-noise gain
-//     sqrt(sum k^2)).
+//     the smoothed image: the block noise times the filter's white-noise gain
+//     sqrt(sum k^2), or, where larger, the smoothed image's noise measured
+//     per block (1.4826 MAD / sqrt(2) of differences 8 px apart, at least 6
+//     smoothing sigmas), which JPEG's correlated noise needs.
 //  3. Components (cv::connectedComponentsWithStats, 8-connected, run only
 //     inside groups of background blocks holding "on" pixels). Rejected:
 //     area outside [min_area_px, max_area_px]; touching the image border

@@ -252,6 +252,8 @@ struct FrontEndRun {
   // reported not placed (camera_of_image -1), with a note saying why.
   void UnplaceImagesWithoutTags();
   Status ChooseFrameTags();
+  // NoSolution naming a frame tag that is not (or no longer) adjusted.
+  Status CheckFrameTagsUsable(const std::string& when) const;
   Status AdjustTags();        // 4
   void GroupShots();          // 5: the exposure groups
   Status MatchGroups();       // 5: matching, into the bundle
@@ -547,19 +549,25 @@ void FrontEndRun::UnplaceImagesWithoutTags() {
   }
 }
 
+Status FrontEndRun::CheckFrameTagsUsable(const std::string& when) const {
+  const char* role[3] = {"origin", "axis", "plane"};
+  for (int r = 0; r < 3; ++r) {
+    if (!first_corner_point.count(frame_tags[static_cast<size_t>(r)])) {
+      return Status::NoSolution(
+          "frame " + std::string(role[r]) + " tag " +
+          std::to_string(frame_tags[static_cast<size_t>(r)]) +
+          " is not seen from two camera positions (placed images whose rays meet at " +
+          FormatNumber(options.min_tag_triangulation_angle_deg) + " deg or more)" + when);
+    }
+  }
+  return Status::Ok();
+}
+
 Status FrontEndRun::ChooseFrameTags() {
   // The frame's tags.
   if (scene.frame) {
     frame_tags = {scene.frame->origin_tag, scene.frame->axis_tag, scene.frame->plane_tag};
-    const char* role[3] = {"origin", "axis", "plane"};
-    for (int r = 0; r < 3; ++r) {
-      if (!first_corner_point.count(frame_tags[static_cast<size_t>(r)])) {
-        return Status::NoSolution("frame " + std::string(role[r]) + " tag " +
-                                  std::to_string(frame_tags[static_cast<size_t>(r)]) +
-                                  " is not seen from two camera positions (placed images whose rays "
-                                  "meet at min_tag_triangulation_angle_deg or more)");
-      }
-    }
+    OPL_RETURN_IF_ERROR(CheckFrameTagsUsable(""));
   } else {
     // The three placed tags spanning the largest triangle.
     std::vector<std::pair<int, Eigen::Vector3d>> centers;
@@ -644,15 +652,7 @@ Status FrontEndRun::AdjustTags() {
   // Dropped corners may leave a tag seen from one position only.
   DropTagsSeenFromOnePosition();
   UnplaceImagesWithoutTags();
-  const char* role[3] = {"origin", "axis", "plane"};
-  for (int r = 0; r < 3; ++r) {
-    if (!first_corner_point.count(frame_tags[static_cast<size_t>(r)])) {
-      return Status::NoSolution("frame " + std::string(role[r]) + " tag " +
-                                std::to_string(frame_tags[static_cast<size_t>(r)]) +
-                                " is not seen from two camera positions once its outlying "
-                                "corners are dropped");
-    }
-  }
+  OPL_RETURN_IF_ERROR(CheckFrameTagsUsable(" once its outlying corners are dropped"));
   Progress("adjust tags", 1, 1);
   // Unobserved (constant) tag points would break the datum of the final
   // adjustment: remove them.

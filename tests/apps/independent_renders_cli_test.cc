@@ -12,6 +12,7 @@
 // covariance. Before the detector measured the smoothed image's noise, the
 // JPEG images gave 9,000-17,000 blobs each and took over two minutes.
 #include <fstream>
+#include <iostream>
 #include <string>
 
 #include <gmock/gmock.h>
@@ -86,6 +87,25 @@ TEST(IndependentRendersVerbose, ShowsTheAdjustmentReportOnStderr) {
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_THAT(r.err, HasSubstr("bundle adjustment: 10 cameras"));
   EXPECT_THAT(r.err, HasSubstr("point covariances: first order"));
+}
+
+// A frame tag that only one camera position sees cannot hold the frame:
+// exit 4 naming the tag, its role and why, and nothing else on stderr.
+TEST(IndependentRendersFrame, FrameTagSeenFromOnePositionIsRefused) {
+  const std::string dir = kData + "plain_seed1";
+  std::ifstream in(dir + "/scene.json");
+  nlohmann::json scene = nlohmann::json::parse(in);
+  scene["frame"]["origin_tag"] = 191;  // seen by cam0 only (two shots)
+  testing_support::TempDir tmp;
+  const std::string scene_path = tmp.File("scene.json");
+  std::ofstream(scene_path) << scene.dump(1);
+  const RunResult r = Measure("--calibration " + dir + "/calibration.json --images " + dir +
+                              " --scene " + scene_path + " --threads 2");
+  EXPECT_EQ(r.exit_code, 4);
+  EXPECT_EQ(r.err,
+            "opl_measure: frame origin tag 191 is not seen from two camera positions (placed "
+            "images whose rays meet at 1 deg or more)\n");
+  EXPECT_EQ(r.out, "");
 }
 
 }  // namespace

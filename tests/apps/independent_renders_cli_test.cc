@@ -1,6 +1,6 @@
 // opl_measure --images on a scene that OPL's renderer did not make
 // (tests/data/independent_renders/README.md: five cameras, each shooting grid
-// A and grid B from one position; three tags seen by one camera only), as
+// A and grid B from one position; some tags seen by one camera only), as
 // PNG and as JPEG, with one pose per image (the default) and one pose per
 // camera. Each must measure (exit 0), say nothing on stderr (no solver log
 // line), name the tags it could not use, match spots at the model's level,
@@ -13,7 +13,10 @@
 // JPEG images gave 9,000-17,000 blobs each and took over two minutes.
 #include <fstream>
 #include <iostream>
+#include <map>
+#include <set>
 #include <string>
+#include <vector>
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -49,11 +52,27 @@ TEST_P(IndependentRenders, MeasuresWithinThreeUncertaintiesAndQuietly) {
   const nlohmann::json truth = nlohmann::json::parse(truth_file);
   const double s_true = truth["scale_factor"].get<double>();
 
-  // The three tags seen by one camera only are named, and not used.
-  const std::string warnings = report["warnings"].dump();
-  for (const char* tag : {"tag 191", "tag 229", "tag 450"}) {
-    EXPECT_THAT(warnings, HasSubstr(std::string(tag) + ": not used, seen from one camera position"));
+  // Every tag detected by one camera only (in its A and B shots: one
+  // position) is named, and not used. There are such tags (191, 229 and 450
+  // today): the test cannot pass vacuously.
+  std::map<int, std::set<std::string>> cameras_of_tag;
+  for (const auto& image : report["images"]) {
+    for (int id : image["tags"].get<std::vector<int>>()) {
+      cameras_of_tag[id].insert(image["camera"].get<std::string>());
+    }
   }
+  const std::string warnings = report["warnings"].dump();
+  int one_position_tags = 0;
+  for (const auto& [id, cameras] : cameras_of_tag) {
+    const std::string named = "tag " + std::to_string(id) + ": not used, seen from one camera position";
+    if (cameras.size() == 1) {
+      ++one_position_tags;
+      EXPECT_THAT(warnings, HasSubstr(named));
+    } else {
+      EXPECT_THAT(warnings, ::testing::Not(HasSubstr(named)));
+    }
+  }
+  EXPECT_GE(one_position_tags, 2);
   // Every image placed; every spot of each grid matched, none invented; the
   // spots' residuals at the model's level (0.08-0.12 px measured), not tens of px.
   for (const auto& image : report["images"]) {

@@ -28,8 +28,9 @@ const cv::aruco::Dictionary& Tag36h11() {
 }
 
 // Bits corrected to read `id` from the data cells sampled through the quad.
-int Hamming(const cv::Mat& image, const std::array<Eigen::Vector2d, 4>& corners, int id, double* contrast) {
-  const cv::Mat bits = tag_internal::ReadTagBits(image, corners, contrast);
+int Hamming(const cv::Mat& image, const std::array<Eigen::Vector2d, 4>& corners, int id, double sharpening,
+            double* contrast) {
+  const cv::Mat bits = tag_internal::ReadTagBits(image, corners, sharpening, contrast);
   return Tag36h11().getDistanceToId(bits, id, false);
 }
 
@@ -119,19 +120,25 @@ bool RefineCandidate(const cv::Mat& gray, const TagCandidate& candidate, const T
   centre -= origin;
 
   if (options.refinement != TagCornerRefinement::kEdgeFit) {
-    det->hamming = Hamming(gray64, local, det->id, nullptr);
+    det->hamming = Hamming(gray64, local, det->id, options.decode_sharpening, nullptr);
     return det->hamming <= options.max_hamming;
   }
 
-  // The edge fit.
+  // The edge fit. Each edge's band and corner exclusion are in cells of the
+  // tag as seen across and along that edge (an oblique tag's cells are
+  // narrower one way than the other).
   const double cell = side / kTagCells;
-  tag_internal::EdgeFitSettings fit;
-  fit.band_px = std::max(1.0, std::min(options.max_edge_band_px, options.edge_band_cells * cell));
-  fit.corner_exclusion_px = std::min(options.edge_corner_exclusion_px, std::max(1.0, cell));
-  fit.max_sigma_px = options.max_edge_sigma_px;
+  std::array<double, 4> length;
+  for (int e = 0; e < 4; ++e) length[e] = (local[(e + 1) % 4] - local[e]).norm();
   std::array<EdgeCurve, 4> edges;
   bool ok = true;
   for (int e = 0; e < 4 && ok; ++e) {
+    const double across_cell = 0.5 * (length[(e + 1) % 4] + length[(e + 3) % 4]) / kTagCells;
+    const double along_cell = length[e] / kTagCells;
+    tag_internal::EdgeFitSettings fit;
+    fit.band_px = std::max(1.0, std::min(options.max_edge_band_px, options.edge_band_cells * across_cell));
+    fit.corner_exclusion_px = std::min(options.edge_corner_exclusion_px, std::max(1.0, along_cell));
+    fit.max_sigma_px = options.max_edge_sigma_px;
     ok = tag_internal::FitEdge(gray64, local[e], local[(e + 1) % 4], centre, fit, &edges[e]);
   }
   std::array<Eigen::Vector2d, 4> refined;
@@ -146,7 +153,7 @@ bool RefineCandidate(const cv::Mat& gray, const TagCandidate& candidate, const T
   }
   if (ok) {
     double contrast = 0.0;
-    const int hamming = Hamming(gray64, refined, det->id, &contrast);
+    const int hamming = Hamming(gray64, refined, det->id, options.decode_sharpening, &contrast);
     if (hamming <= options.max_hamming) {
       det->hamming = hamming;
       det->edge_fitted = true;
@@ -170,7 +177,7 @@ bool RefineCandidate(const cv::Mat& gray, const TagCandidate& candidate, const T
     return false;
   }
   double contrast = 0.0;
-  det->hamming = Hamming(gray64, local, det->id, &contrast);
+  det->hamming = Hamming(gray64, local, det->id, options.decode_sharpening, &contrast);
   if (det->hamming > options.max_hamming) return false;
   det->edge_fitted = false;
   det->edge_contrast = contrast;

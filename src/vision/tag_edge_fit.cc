@@ -238,39 +238,67 @@ bool IntersectEdges(const EdgeCurve& e1, const EdgeCurve& e2, const Eigen::Vecto
   return true;
 }
 
-cv::Mat ReadTagBits(const cv::Mat& image, const std::array<Eigen::Vector2d, 4>& corners, double* contrast) {
+cv::Mat ReadTagBits(const cv::Mat& image, const std::array<Eigen::Vector2d, 4>& corners, double sharpening,
+                    double* contrast) {
   // Homography from tag cell coordinates (0..8) to the image.
   std::vector<cv::Point2f> src = {{0.f, 0.f}, {8.f, 0.f}, {8.f, 8.f}, {0.f, 8.f}};
   std::vector<cv::Point2f> dst;
   for (const auto& c : corners) dst.emplace_back(static_cast<float>(c.x()), static_cast<float>(c.y()));
-  const cv::Mat H = cv::getPerspectiveTransform(src, dst);
+  const cv::Mat Hcv = cv::getPerspectiveTransform(src, dst);
+  const double* H = Hcv.ptr<double>(0);
   auto sample = [&](double cx, double cy) {
     double sum = 0.0;
     for (int a = -1; a <= 1; ++a) {
       for (int b = -1; b <= 1; ++b) {
-        const double x = cx + 0.25 * a, y = cy + 0.25 * b;
-        const double w = H.at<double>(2, 0) * x + H.at<double>(2, 1) * y + H.at<double>(2, 2);
-        const double u = (H.at<double>(0, 0) * x + H.at<double>(0, 1) * y + H.at<double>(0, 2)) / w;
-        const double v = (H.at<double>(1, 0) * x + H.at<double>(1, 1) * y + H.at<double>(1, 2)) / w;
-        sum += Bilinear(image, u, v);
+        const double x = cx + 0.2 * a, y = cy + 0.2 * b;
+        const double w = H[6] * x + H[7] * y + H[8];
+        sum += Bilinear(image, (H[0] * x + H[1] * y + H[2]) / w, (H[3] * x + H[4] * y + H[5]) / w);
       }
     }
     return sum / 9.0;
   };
-  // Threshold: midway between the black border and the white quiet zone.
-  double black = 0.0, white = 0.0;
-  for (int k = 0; k < kTagCells; ++k) {
-    const double t = k + 0.5;
-    black += sample(t, 0.5) + sample(t, 7.5) + sample(0.5, t) + sample(7.5, t);
-    white += sample(t, -0.5) + sample(t, 8.5) + sample(-0.5, t) + sample(8.5, t);
+  // The 10 x 10 cells of the tag and the ring around it (quiet zone): row
+  // r, column c of `grid` is the cell whose centre is (c - 0.5, r - 0.5).
+  double grid[10][10];
+  for (int r = 0; r < 10; ++r) {
+    for (int c = 0; c < 10; ++c) {
+      const bool ring = r == 0 || r == 9 || c == 0 || c == 9;
+      const bool corner = (r == 0 || r == 9) && (c == 0 || c == 9);
+      grid[r][c] = ring && corner ? 0.0 : sample(c - 0.5, r - 0.5);
+    }
   }
-  black /= 4.0 * kTagCells;
-  white /= 4.0 * kTagCells;
-  if (contrast != nullptr) *contrast = white - black;
-  const double threshold = 0.5 * (black + white);
+  // Black (border) and white (quiet zone) levels, each a plane
+  // level(x, y) = l0 + l1 x + l2 y over the tag (light falls off across an
+  // oblique tag), least squares over their cells.
+  auto fit_plane = [&](bool white) {
+    Eigen::Matrix3d AtA = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d Atb = Eigen::Vector3d::Zero();
+    for (int r = 0; r < 10; ++r) {
+      for (int c = 0; c < 10; ++c) {
+        const bool ring = r == 0 || r == 9 || c == 0 || c == 9;
+        const bool corner = (r == 0 || r == 9) && (c == 0 || c == 9);
+        const bool border = !ring && (r == 1 || r == 8 || c == 1 || c == 8);
+        if (white ? (!ring || corner) : !border) continue;
+        const Eigen::Vector3d a(1.0, c - 4.5, r - 4.5);
+        AtA += a * a.transpose();
+        Atb += a * grid[r][c];
+      }
+    }
+    return Eigen::Vector3d(AtA.ldlt().solve(Atb));
+  };
+  const Eigen::Vector3d black = fit_plane(false), white = fit_plane(true);
+  if (contrast != nullptr) *contrast = white[0] - black[0];
+  const Eigen::Vector3d threshold = 0.5 * (black + white);
   cv::Mat bits(6, 6, CV_8UC1);
   for (int r = 0; r < 6; ++r) {
-    for (int c = 0; c < 6; ++c) bits.at<uchar>(r, c) = sample(c + 1.5, r + 1.5) > threshold ? 1 : 0;
+    for (int c = 0; c < 6; ++c) {
+      const int gr = r + 2, gc = c + 2;
+      // Sharpened as libapriltag's decoder does: v + s (4 v - 4 neighbours).
+      const double v = grid[gr][gc];
+      const double lap = 4.0 * v - grid[gr - 1][gc] - grid[gr + 1][gc] - grid[gr][gc - 1] - grid[gr][gc + 1];
+      const double t = threshold[0] + threshold[1] * (gc - 4.5) + threshold[2] * (gr - 4.5);
+      bits.at<uchar>(r, c) = v + sharpening * lap > t ? 1 : 0;
+    }
   }
   return bits;
 }

@@ -65,11 +65,14 @@ bool IntersectEdges(const EdgeCurve& e1, const EdgeCurve& e2, const Eigen::Vecto
                     double max_move_px, Eigen::Vector2d* corner, Eigen::Matrix2d* cov);
 
 // The 6 x 6 data cells of a tag read through its corners (order of
-// vision/tag_detection.h) in a CV_64FC1 image: 1 = white. The threshold is
-// midway between the mean of the black border and of the quiet zone around
-// it; each cell is the mean of 3 x 3 bilinear samples spread over its middle
-// half. `contrast` (optional): quiet zone mean - border mean [grey levels].
-cv::Mat ReadTagBits(const cv::Mat& image, const std::array<Eigen::Vector2d, 4>& corners,
+// vision/tag_detection.h) in a CV_64FC1 image: 1 = white. Each cell's value
+// is the mean of 3 x 3 bilinear samples 0.2 cell apart around its centre,
+// sharpened as libapriltag's decoder does (v + sharpening (4 v - the 4
+// neighbours)); the threshold is midway between two planes fitted over the
+// tag, the black border's and the quiet zone's (the ring of cells around the
+// tag), so that light falling off across an oblique tag is followed.
+// `contrast` (optional): quiet zone - border at the tag's centre [grey levels].
+cv::Mat ReadTagBits(const cv::Mat& image, const std::array<Eigen::Vector2d, 4>& corners, double sharpening,
                     double* contrast = nullptr);
 
 }  // namespace tag_internal

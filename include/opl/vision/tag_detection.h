@@ -126,7 +126,7 @@ struct TagDetectionOptions {
   // at least fallback_min_decision_margin [grey levels], and its cells
   // re-read by us through its corners give the same id within max_hamming.
   bool keep_unrefined_tags = true;
-  int fallback_max_hamming = 0;           // in [0, 2]
+  int fallback_max_hamming = 1;           // in [0, 2]
   double fallback_min_decision_margin = 0.0; // >= 0
   // Standard deviation of each coordinate of such a corner [px] (its
   // covariance is this squared times identity): the RMS error of

@@ -209,7 +209,7 @@ bool FitEdge(const cv::Mat& image, const Eigen::Vector2d& p, const Eigen::Vector
     // re-centred band only when the fitted edge moved away from it.
     const double moved = std::abs(edge->c) + std::abs(edge->theta - theta0) * 0.5 * length +
                          std::abs(edge->kappa) * 0.25 * length * length;
-    if (pass == 0 && moved < 0.25) break;
+    if (pass == 0 && moved < 0.02) break;
   }
   return edge->b > 0.0 && edge->sigma < settings.max_sigma_px && edge->sigma > 0.05;
 }

@@ -372,6 +372,20 @@ TEST(DetectTagsOnPhotos, RecallAtLeastLibAprilTagsOwnAndNoFalseTag) {
   EXPECT_EQ(opl.false_tags, 0);
   EXPECT_EQ(opl_apriltag.false_tags, 0);
   EXPECT_EQ(opl_aruco.false_tags, 0);
+  // aruco's candidates add tags libapriltag misses (why use_aruco is on).
+  EXPECT_GT(opl.found, opl_apriltag.found);
+  // The old detector (aruco's candidates alone) finds far fewer.
+  EXPECT_LT(opl_aruco.found, opl.found - 100);
+  // Corners on JPEG-compressed, blurred photographs (measured 0.24 px; the
+  // half-cell quiet zones account for most of it).
+  EXPECT_LT(opl.Rms(), 0.3);
+  // Unrefined tags: libapriltag's corners, whose reported covariance
+  // (fallback_corner_sigma_px per coordinate) describes their error within a
+  // factor 2.
+  const double sigma = TagDetectionOptions().fallback_corner_sigma_px;
+  ASSERT_GT(opl.corners_unrefined, 0);
+  EXPECT_LT(opl.RmsUnrefined(), 2.0 * std::sqrt(2.0) * sigma);
+  EXPECT_GT(opl.RmsUnrefined(), 0.5 * std::sqrt(2.0) * sigma);
 }
 
 // Every photograph of opencv-doc's sample data (none shows a tag36h11 tag;

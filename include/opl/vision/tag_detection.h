@@ -100,6 +100,8 @@ struct TagDetectionOptions {
 
   // --- Refinement ---
   // Tags whose side (mean edge length) is shorter are ignored [px], >= 6.
+  // (Tags with a corner less than 1 px inside the image are ignored too: cut
+  // by the border, their edge fits are biased.)
   double min_tag_side_px = 8.0;
   // Edge fit: pixels closer than this to a corner (along the edge) are not
   // used, so the fit sees one straight-ish step only [px], >= 1 (on small
@@ -134,7 +136,7 @@ struct TagDetectionOptions {
   // Standard deviation of each coordinate of such a corner [px] (its
   // covariance is this squared times identity): the RMS error of
   // libapriltag's corners measured on the composite photographs (docs).
-  double fallback_corner_sigma_px = 0.3;
+  double fallback_corner_sigma_px = 0.45;
 
   // OpenCV's cornerSubPix half window for kOpenCvSubpix [px], >= 1.
   int subpix_half_window_px = 3;

@@ -12,29 +12,38 @@
 // printed, z = x cross y (into the tag, away from the viewer); with side s the
 // corners are (-s/2, -s/2), (s/2, -s/2), (s/2, s/2), (-s/2, s/2), z = 0.
 //
-// The detector. Candidates and ids come from OpenCV's aruco module with the
-// DICT_APRILTAG_36h11 dictionary (contour quads, more adaptive-threshold
-// windows than aruco's default); the corners are then refined by an edge fit
-// of our own (TagCornerRefinement::kEdgeFit, the default), because no OpenCV
-// refinement reaches 0.05 px on blurred, distorted images (figures in the
-// doc; the others are kept for comparison). Each of the four
-// edges of the black square is fitted, over the pixels of a band around it
-// (away from the corners), by the model of a blurred step,
+// The detector. Candidates and ids come from libapriltag 3.x (tag36h11) and
+// from OpenCV's aruco module (DICT_APRILTAG_36h11), merged (the same id with
+// overlapping quads is one tag); libapriltag finds far more small and
+// oblique tags on real photographs, aruco adds a few with a narrow quiet
+// zone (figures in the doc). libapriltag's pixel convention (its (0, 0) is
+// the first pixel's corner) and corner order are converted to ours in one
+// place (src/vision/apriltag_candidates.h). The corners are then refined by
+// an edge fit of our own (TagCornerRefinement::kEdgeFit, the default),
+// because neither detector's corners reach 0.05 px on blurred, distorted
+// images (the other refinements, aruco's alone, are kept for comparison).
+// Each of the four edges of the black square is fitted, over the pixels of
+// a band around it (away from the corners), by the model of a blurred step,
 //   I(p) = a + b Phi(d(p) / sigma),  d(p) = cos(t) x + sin(t) y - c + kappa s^2,
 // (a, b: the two levels, sigma: the edge spread, t, c: the line, kappa: its
 // curvature, which absorbs lens distortion; s: position along the edge) by
-// Levenberg-Marquardt; each corner is the intersection of its two edge curves. The
+// Levenberg-Marquardt; each corner is the intersection of its two edge
+// curves, and the id is re-read through them. A tag the edge fit cannot
+// refine (about 2 px per cell, heavy blur) is kept with libapriltag's own
+// corners and a larger covariance when libapriltag decoded it cleanly
+// (keep_unrefined_tags; TagDetection::edge_fitted = false). The edge fit's
 // corner covariance is propagated from the two fits' covariances
 // (residual variance x (J^T J)^-1): a first-order estimate for white pixel
 // noise, which does not include model error (see the doc for how it compares
 // with the actual error).
 //
-// A 16-bit image is fitted at full depth; aruco sees it stretched to 8 bits
-// by its maximum.
+// A 16-bit image is fitted at full depth; libapriltag and aruco see it
+// stretched to 8 bits by its maximum.
 //
 // Errors (Status, never an abort): an empty image, an image that is not
 // single-channel 8- or 16-bit (CV_8UC1, CV_16UC1; 3-channel 8-bit BGR is
-// converted to gray), bad options. Finding no tag is not an error (an empty
+// converted to gray), bad options, libapriltag failing to allocate its
+// detector (NoSolution). Finding no tag is not an error (an empty
 // list).
 #pragma once
 
@@ -104,8 +113,7 @@ struct TagDetectionOptions {
   // by the border, their edge fits are biased.)
   double min_tag_side_px = 8.0;
   // Edge fit: pixels closer than this to a corner (along the edge) are not
-  // used, so the fit sees one straight-ish step only [px], >= 1 (on small
-  // tags at most one cell, side / 8).
+  // used, so the fit sees one straight-ish step only [px], >= 1.
   double edge_corner_exclusion_px = 2.5;
   // Edge fit: half-width of the band fitted around each edge, as a fraction
   // of a cell (side / 8); the band must stay inside the black border and the

@@ -9,290 +9,180 @@
 #include <opencv2/imgproc.hpp>
 
 #include "opl/core/format.h"
+#include "vision/apriltag_candidates.h"
+#include "vision/tag_edge_fit.h"
 
 namespace opl {
 namespace {
 
-constexpr int kTagCells = 8;
+using tag_internal::EdgeCurve;
+using tag_internal::kTagCells;
+using tag_internal::TagCandidate;
+
 constexpr int kTag36h11MaxCorrectionBits = 5;  // (minimum distance 11 - 1) / 2
 
-// The standard normal cdf Phi(z) and pdf phi(z) from one exponential: erfc
-// by Abramowitz & Stegun 7.1.26 (absolute error < 1.5e-7, i.e. 1.5e-7 of the
-// edge contrast: far below any grey level).
-void NormalCdfPdf(double z, double* cdf, double* pdf) {
-  const double e = std::exp(-0.5 * z * z);
-  *pdf = e * 0.3989422804014327;  // 1 / sqrt(2 pi)
-  const double x = std::abs(z) * 0.7071067811865476;
-  const double t = 1.0 / (1.0 + 0.3275911 * x);
-  const double erfc_x =
-      t * (0.254829592 + t * (-0.284496736 + t * (1.421413741 + t * (-1.453152027 + t * 1.061405429)))) * e;
-  *cdf = z >= 0.0 ? 1.0 - 0.5 * erfc_x : 0.5 * erfc_x;
-}
-
-// Bilinear sample of a CV_64FC1 image at (x, y), pixel centres at integers.
-double Bilinear(const cv::Mat& image, double x, double y) {
-  const int j = static_cast<int>(std::floor(x));
-  const int i = static_cast<int>(std::floor(y));
-  const int j0 = std::clamp(j, 0, image.cols - 1), j1 = std::clamp(j + 1, 0, image.cols - 1);
-  const int i0 = std::clamp(i, 0, image.rows - 1), i1 = std::clamp(i + 1, 0, image.rows - 1);
-  const double fx = x - j, fy = y - i;
-  const double top = (1.0 - fx) * image.at<double>(i0, j0) + fx * image.at<double>(i0, j1);
-  const double bot = (1.0 - fx) * image.at<double>(i1, j0) + fx * image.at<double>(i1, j1);
-  return (1.0 - fy) * top + fy * bot;
-}
-
-// One edge of the black square as the curve
-//   d(p) = cos(theta) x + sin(theta) y - c + kappa s^2 = 0,
-// with (x, y) = p - mid (mid: the initial midpoint of the edge, so that theta
-// and c are nearly uncorrelated), s = u . (p - mid) along the (fixed) initial
-// direction u, and d > 0 on the outer (white) side.
-struct EdgeCurve {
-  double theta = 0.0, c = 0.0, kappa = 0.0;
-  Eigen::Vector2d u, mid;  // fixed parametrisation
-  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();  // of (theta, c, kappa)
-  double a = 0.0, b = 0.0, sigma = 1.0;
-  double rms = 0.0;
-
-  double S(const Eigen::Vector2d& p) const { return u.dot(p - mid); }
-  double D(const Eigen::Vector2d& p) const {
-    const double s = S(p);
-    const Eigen::Vector2d q = p - mid;
-    return std::cos(theta) * q.x() + std::sin(theta) * q.y() - c + kappa * s * s;
-  }
-  Eigen::Vector2d Gradient(const Eigen::Vector2d& p) const {
-    return Eigen::Vector2d(std::cos(theta), std::sin(theta)) + 2.0 * kappa * S(p) * u;
-  }
-  // d D / d (theta, c, kappa)
-  Eigen::RowVector3d ParamJacobian(const Eigen::Vector2d& p) const {
-    const double s = S(p);
-    const Eigen::Vector2d q = p - mid;
-    return Eigen::RowVector3d(-std::sin(theta) * q.x() + std::cos(theta) * q.y(), -1.0, s * s);
-  }
-};
-
-// Fits the edge from corner p to corner q of a quad whose centre is `centre`.
-bool FitEdge(const cv::Mat& image, const Eigen::Vector2d& p, const Eigen::Vector2d& q,
-             const Eigen::Vector2d& centre, double band_px, const TagDetectionOptions& options,
-             EdgeCurve* edge) {
-  const double length = (q - p).norm();
-  if (!(length > 2.0 * options.edge_corner_exclusion_px + 2.0)) return false;
-  edge->u = (q - p) / length;
-  edge->mid = 0.5 * (p + q);
-  Eigen::Vector2d n(-edge->u.y(), edge->u.x());
-  if (n.dot(edge->mid - centre) < 0.0) n = -n;  // outward
-  edge->theta = std::atan2(n.y(), n.x());
-  const double theta0 = edge->theta;
-  edge->c = 0.0;
-  edge->kappa = 0.0;
-  const double half_run = 0.5 * length - options.edge_corner_exclusion_px;
-
-  std::vector<Eigen::Vector2d> pts;
-  std::vector<double> values;
-  for (int pass = 0; pass < 2; ++pass) {
-    // Pixels in the band around the current curve.
-    pts.clear();
-    values.clear();
-    const Eigen::Vector2d ends[2] = {edge->mid - 0.5 * length * edge->u, edge->mid + 0.5 * length * edge->u};
-    const double pad = band_px + 2.0;
-    const int j0 = std::max(0, static_cast<int>(std::floor(std::min(ends[0].x(), ends[1].x()) - pad)));
-    const int j1 = std::min(image.cols - 1, static_cast<int>(std::ceil(std::max(ends[0].x(), ends[1].x()) + pad)));
-    const int i0 = std::max(0, static_cast<int>(std::floor(std::min(ends[0].y(), ends[1].y()) - pad)));
-    const int i1 = std::min(image.rows - 1, static_cast<int>(std::ceil(std::max(ends[0].y(), ends[1].y()) + pad)));
-    for (int i = i0; i <= i1; ++i) {
-      for (int j = j0; j <= j1; ++j) {
-        const Eigen::Vector2d px(j, i);
-        if (std::abs(edge->S(px)) > half_run) continue;
-        if (std::abs(edge->D(px)) > band_px) continue;
-        pts.push_back(px);
-        values.push_back(image.at<double>(i, j));
-      }
-    }
-    const int m = static_cast<int>(pts.size());
-    if (m < 12) return false;
-    if (pass == 0) {
-      // Initial levels: means of the inner and outer halves of the band.
-      double in_sum = 0.0, out_sum = 0.0;
-      int in_n = 0, out_n = 0;
-      for (int k = 0; k < m; ++k) {
-        if (edge->D(pts[k]) < -0.5) { in_sum += values[k]; ++in_n; }
-        if (edge->D(pts[k]) > 0.5) { out_sum += values[k]; ++out_n; }
-      }
-      if (in_n == 0 || out_n == 0) return false;
-      edge->a = in_sum / in_n;
-      edge->b = out_sum / out_n - edge->a;
-      edge->sigma = 1.0;
-      if (!(edge->b > 0.0)) return false;
-    }
-    // Levenberg-Marquardt, parameters (theta, c, kappa, a, b, log sigma).
-    // Pixel positions relative to the midpoint, and s^2, once per pass.
-    std::vector<double> qx(static_cast<size_t>(m)), qy(qx.size()), s2(qx.size());
-    for (int k = 0; k < m; ++k) {
-      const Eigen::Vector2d rel = pts[k] - edge->mid;
-      qx[k] = rel.x();
-      qy[k] = rel.y();
-      const double sk = edge->u.dot(rel);
-      s2[k] = sk * sk;
-    }
-    auto cost_and_jacobian = [&](const Eigen::Matrix<double, 6, 1>& params,
-                                 Eigen::Matrix<double, 6, 6>* jtj, Eigen::Matrix<double, 6, 1>* jtr) {
-      const double ct = std::cos(params[0]), st = std::sin(params[0]);
-      const double c = params[1], kappa = params[2];
-      const double a = params[3], b = params[4], sigma = std::exp(params[5]);
-      double cost = 0.0;
-      if (jtj) jtj->setZero();
-      if (jtr) jtr->setZero();
-      for (int k = 0; k < m; ++k) {
-        const double d = ct * qx[k] + st * qy[k] - c + kappa * s2[k];
-        const double z = d / sigma;
-        double cdf, pdf;
-        NormalCdfPdf(z, &cdf, &pdf);
-        const double r = a + b * cdf - values[k];
-        cost += r * r;
-        if (jtj) {
-          const double dr_dd = b * pdf / sigma;
-          Eigen::Matrix<double, 6, 1> g;
-          g[0] = dr_dd * (-st * qx[k] + ct * qy[k]);
-          g[1] = -dr_dd;
-          g[2] = dr_dd * s2[k];
-          g[3] = 1.0;
-          g[4] = cdf;
-          g[5] = -dr_dd * d;  // d r / d log(sigma)
-          *jtj += g * g.transpose();
-          *jtr += g * r;
-        }
-      }
-      return cost;
-    };
-    Eigen::Matrix<double, 6, 1> x;
-    x << edge->theta, edge->c, edge->kappa, edge->a, edge->b, std::log(edge->sigma);
-    if (pass == 0) {
-      // The initial quad can be a pixel or two off: search the offset first.
-      double best = cost_and_jacobian(x, nullptr, nullptr);
-      const double c0 = x[1];
-      const double range = std::min(band_px, 2.0);
-      for (double dc = -range; dc <= range; dc += 0.5) {
-        Eigen::Matrix<double, 6, 1> trial = x;
-        trial[1] = c0 + dc;
-        const double cost = cost_and_jacobian(trial, nullptr, nullptr);
-        if (cost < best) {
-          best = cost;
-          x[1] = trial[1];
-        }
-      }
-    }
-    double lambda = 1e-3;
-    Eigen::Matrix<double, 6, 6> jtj;
-    Eigen::Matrix<double, 6, 1> jtr;
-    double cost = cost_and_jacobian(x, &jtj, &jtr);
-    for (int iter = 0; iter < 30; ++iter) {
-      Eigen::Matrix<double, 6, 6> damped = jtj;
-      for (int k = 0; k < 6; ++k) damped(k, k) += lambda * std::max(jtj(k, k), 1e-12);
-      Eigen::Matrix<double, 6, 1> step = -damped.ldlt().solve(jtr);
-      if (!step.allFinite()) return false;
-      // A trust region in the natural units: the edge moves by at most
-      // 0.5 px, sigma changes by at most 30% per step.
-      const double move = std::abs(step[1]) + std::abs(step[0]) * 0.5 * length +
-                          std::abs(step[2]) * 0.25 * length * length;
-      if (move > 0.5) step.head<3>() *= 0.5 / move;
-      step[5] = std::clamp(step[5], -0.3, 0.3);
-      const Eigen::Matrix<double, 6, 1> trial = x + step;
-      Eigen::Matrix<double, 6, 6> trial_jtj;
-      Eigen::Matrix<double, 6, 1> trial_jtr;
-      const double trial_cost = cost_and_jacobian(trial, &trial_jtj, &trial_jtr);
-      if (trial_cost < cost) {
-        x = trial;
-        // Converged when the edge moves by less than 1e-5 px anywhere on it.
-        const bool small = std::abs(step[1]) < 1e-5 && std::abs(step[0]) * length < 1e-5 &&
-                           std::abs(step[2]) * 0.25 * length * length < 1e-5;
-        cost = trial_cost;
-        jtj = trial_jtj;
-        jtr = trial_jtr;
-        lambda = std::max(lambda * 0.3, 1e-9);
-        if (small) break;
-      } else {
-        lambda *= 10.0;
-        if (lambda > 1e8) break;
-      }
-    }
-    edge->theta = x[0];
-    edge->c = x[1];
-    edge->kappa = x[2];
-    edge->a = x[3];
-    edge->b = x[4];
-    edge->sigma = std::exp(x[5]);
-    const double variance = cost / std::max(1, m - 6);
-    edge->rms = std::sqrt(cost / m);
-    Eigen::Matrix<double, 6, 6> cov = jtj.inverse() * variance;
-    if (!cov.allFinite()) return false;
-    edge->cov = cov.topLeftCorner<3, 3>();
-    // The band of pass 0 was centred on the initial quad's edge: refit on a
-    // re-centred band only when the fitted edge moved away from it.
-    const double moved = std::abs(edge->c) + std::abs(edge->theta - theta0) * 0.5 * length +
-                         std::abs(edge->kappa) * 0.25 * length * length;
-    if (pass == 0 && moved < 0.25) break;
-  }
-  return edge->b > 0.0 && edge->sigma < options.max_edge_sigma_px && edge->sigma > 0.05;
-}
-
-// Intersection of two edge curves near `start`, and its covariance.
-bool IntersectEdges(const EdgeCurve& e1, const EdgeCurve& e2, const Eigen::Vector2d& start,
-                    Eigen::Vector2d* corner, Eigen::Matrix2d* cov) {
-  Eigen::Vector2d p = start;
-  Eigen::Matrix2d J;
-  for (int iter = 0; iter < 20; ++iter) {
-    const Eigen::Vector2d F(e1.D(p), e2.D(p));
-    J.row(0) = e1.Gradient(p).transpose();
-    J.row(1) = e2.Gradient(p).transpose();
-    if (std::abs(J.determinant()) < 1e-6) return false;
-    const Eigen::Vector2d step = -J.inverse() * F;
-    p += step;
-    if (step.norm() < 1e-12) break;
-  }
-  if (!p.allFinite() || (p - start).norm() > 3.0) return false;
-  J.row(0) = e1.Gradient(p).transpose();
-  J.row(1) = e2.Gradient(p).transpose();
-  const Eigen::Matrix2d Jinv = J.inverse();
-  const Eigen::Matrix<double, 2, 3> A1 = -Jinv.col(0) * e1.ParamJacobian(p);
-  const Eigen::Matrix<double, 2, 3> A2 = -Jinv.col(1) * e2.ParamJacobian(p);
-  *corner = p;
-  *cov = A1 * e1.cov * A1.transpose() + A2 * e2.cov * A2.transpose();
-  return true;
+const cv::aruco::Dictionary& Tag36h11() {
+  static const cv::Ptr<cv::aruco::Dictionary> dictionary =
+      cv::aruco::getPredefinedDictionary(cv::aruco::DICT_APRILTAG_36h11);
+  return *dictionary;
 }
 
 // Bits corrected to read `id` from the data cells sampled through the quad.
-int Hamming(const cv::Mat& image, const std::array<Eigen::Vector2d, 4>& corners, int id,
-            const cv::aruco::Dictionary& dictionary) {
-  // Homography from tag cell coordinates (0..8) to the image.
-  std::vector<cv::Point2f> src = {{0.f, 0.f}, {8.f, 0.f}, {8.f, 8.f}, {0.f, 8.f}};
-  std::vector<cv::Point2f> dst;
-  for (const auto& c : corners) dst.emplace_back(static_cast<float>(c.x()), static_cast<float>(c.y()));
-  const cv::Mat H = cv::getPerspectiveTransform(src, dst);
-  auto sample = [&](double cx, double cy) {
-    double sum = 0.0;
-    for (int a = -1; a <= 1; ++a) {
-      for (int b = -1; b <= 1; ++b) {
-        const double x = cx + 0.25 * a, y = cy + 0.25 * b;
-        const double w = H.at<double>(2, 0) * x + H.at<double>(2, 1) * y + H.at<double>(2, 2);
-        const double u = (H.at<double>(0, 0) * x + H.at<double>(0, 1) * y + H.at<double>(0, 2)) / w;
-        const double v = (H.at<double>(1, 0) * x + H.at<double>(1, 1) * y + H.at<double>(1, 2)) / w;
-        sum += Bilinear(image, u, v);
+int Hamming(const cv::Mat& image, const std::array<Eigen::Vector2d, 4>& corners, int id, double sharpening,
+            double* contrast) {
+  const cv::Mat bits = tag_internal::ReadTagBits(image, corners, sharpening, contrast);
+  return Tag36h11().getDistanceToId(bits, id, false);
+}
+
+// aruco's candidates (contour quads, ids) in `gray8`, refined by aruco as
+// `refinement` says (kEdgeFit: not refined).
+std::vector<TagCandidate> ArucoCandidates(const cv::Mat& gray8, const TagDetectionOptions& options) {
+  const cv::Ptr<cv::aruco::Dictionary> dictionary =
+      cv::aruco::getPredefinedDictionary(cv::aruco::DICT_APRILTAG_36h11);
+  cv::Ptr<cv::aruco::DetectorParameters> params = cv::aruco::DetectorParameters::create();
+  switch (options.refinement) {
+    case TagCornerRefinement::kOpenCvAprilTag:
+      params->cornerRefinementMethod = cv::aruco::CORNER_REFINE_APRILTAG;
+      break;
+    case TagCornerRefinement::kOpenCvSubpix:
+      params->cornerRefinementMethod = cv::aruco::CORNER_REFINE_SUBPIX;
+      break;
+    default:
+      params->cornerRefinementMethod = cv::aruco::CORNER_REFINE_NONE;
+  }
+  // More adaptive-threshold windows (3, 7, .., 23 px) than the default (3, 13,
+  // 23) find tilted tags with a narrow quiet zone; candidates closer than
+  // aruco's default distance are kept (the black square and its quiet zone
+  // make two close quads) and duplicates removed after refinement.
+  params->adaptiveThreshWinSizeStep = 4;
+  params->minMarkerDistanceRate = 0.01;
+  params->cornerRefinementWinSize = options.subpix_half_window_px;
+  params->cornerRefinementMinAccuracy = 0.001;
+  params->cornerRefinementMaxIterations = 100;
+  params->errorCorrectionRate = static_cast<double>(options.max_hamming) / kTag36h11MaxCorrectionBits;
+  std::vector<std::vector<cv::Point2f>> quads;
+  std::vector<int> ids;
+  cv::aruco::detectMarkers(gray8, dictionary, quads, ids, params);
+  std::vector<TagCandidate> candidates;
+  for (size_t k = 0; k < ids.size(); ++k) {
+    if (quads[k].size() != 4) continue;
+    TagCandidate c;
+    c.id = ids[k];
+    c.source = TagSource::kAruco;
+    for (int i = 0; i < 4; ++i) c.corners_px[i] = Eigen::Vector2d(quads[k][i].x, quads[k][i].y);
+    candidates.push_back(c);
+  }
+  return candidates;
+}
+
+Eigen::Vector2d Centre(const std::array<Eigen::Vector2d, 4>& corners) {
+  return 0.25 * (corners[0] + corners[1] + corners[2] + corners[3]);
+}
+
+double Side(const std::array<Eigen::Vector2d, 4>& corners) {
+  double side = 0.0;
+  for (int c = 0; c < 4; ++c) side += 0.25 * (corners[(c + 1) % 4] - corners[c]).norm();
+  return side;
+}
+
+// Refines one candidate by the edge fit (or keeps it unrefined, see
+// keep_unrefined_tags) and checks its id. `gray`: the full-resolution image
+// (8 or 16 bit). False: no tag.
+bool RefineCandidate(const cv::Mat& gray, const TagCandidate& candidate, const TagDetectionOptions& options,
+                     TagDetection* det) {
+  det->id = candidate.id;
+  det->source = candidate.source;
+  det->decision_margin = candidate.decision_margin;
+  det->corners_px = candidate.corners_px;
+  for (Eigen::Matrix2d& c : det->corner_covariance_px2) c.setZero();
+  const double side = Side(det->corners_px);
+  Eigen::Vector2d centre = Centre(det->corners_px);
+
+  // The pixels around the tag, as doubles (the edge fit and the id check
+  // read nothing farther than the band from the quad); coordinates in the
+  // window are shifted by its origin.
+  const double margin = 2.0 * options.max_edge_band_px + 8.0 + 0.1 * side;
+  double x0 = centre.x(), x1 = centre.x(), y0 = centre.y(), y1 = centre.y();
+  for (const Eigen::Vector2d& c : det->corners_px) {
+    x0 = std::min(x0, c.x()), x1 = std::max(x1, c.x());
+    y0 = std::min(y0, c.y()), y1 = std::max(y1, c.y());
+  }
+  const int wx0 = std::clamp(static_cast<int>(std::floor(x0 - margin)), 0, gray.cols - 1);
+  const int wy0 = std::clamp(static_cast<int>(std::floor(y0 - margin)), 0, gray.rows - 1);
+  const int wx1 = std::clamp(static_cast<int>(std::ceil(x1 + margin)), 0, gray.cols - 1);
+  const int wy1 = std::clamp(static_cast<int>(std::ceil(y1 + margin)), 0, gray.rows - 1);
+  const cv::Rect window(wx0, wy0, wx1 - wx0 + 1, wy1 - wy0 + 1);
+  cv::Mat gray64;
+  gray(window).convertTo(gray64, CV_64F);
+  const Eigen::Vector2d origin(wx0, wy0);
+  std::array<Eigen::Vector2d, 4> local = det->corners_px;
+  for (Eigen::Vector2d& c : local) c -= origin;
+  centre -= origin;
+
+  if (options.refinement != TagCornerRefinement::kEdgeFit) {
+    det->hamming = Hamming(gray64, local, det->id, options.decode_sharpening, nullptr);
+    return det->hamming <= options.max_hamming;
+  }
+
+  // The edge fit. Each edge's band and corner exclusion are in cells of the
+  // tag as seen across and along that edge (an oblique tag's cells are
+  // narrower one way than the other).
+  const double cell = side / kTagCells;
+  std::array<double, 4> length;
+  for (int e = 0; e < 4; ++e) length[e] = (local[(e + 1) % 4] - local[e]).norm();
+  std::array<EdgeCurve, 4> edges;
+  bool ok = true;
+  for (int e = 0; e < 4 && ok; ++e) {
+    const double across_cell = 0.5 * (length[(e + 1) % 4] + length[(e + 3) % 4]) / kTagCells;
+    tag_internal::EdgeFitSettings fit;
+    fit.band_px = std::max(1.0, std::min(options.max_edge_band_px, options.edge_band_cells * across_cell));
+    fit.corner_exclusion_px = options.edge_corner_exclusion_px;
+    fit.max_sigma_px = options.max_edge_sigma_px;
+    ok = tag_internal::FitEdge(gray64, local[e], local[(e + 1) % 4], centre, fit, &edges[e]);
+  }
+  std::array<Eigen::Vector2d, 4> refined;
+  std::array<Eigen::Matrix2d, 4> covariance;
+  // A corner may move from the candidate's by at most 3 px and half a cell
+  // (further: the fit locked on another edge, e.g. the quiet zone's).
+  const double max_move = std::min(3.0, std::max(1.0, 0.5 * cell));
+  for (int c = 0; c < 4 && ok; ++c) {
+    // Corner c joins edge c-1 (from corner c-1 to c) and edge c.
+    ok = tag_internal::IntersectEdges(edges[(c + 3) % 4], edges[c], local[c], max_move, &refined[c],
+                                      &covariance[c]);
+  }
+  if (ok) {
+    double contrast = 0.0;
+    const int hamming = Hamming(gray64, refined, det->id, options.decode_sharpening, &contrast);
+    if (hamming <= options.max_hamming) {
+      det->hamming = hamming;
+      det->edge_fitted = true;
+      det->corner_covariance_px2 = covariance;
+      for (int c = 0; c < 4; ++c) det->corners_px[c] = refined[c] + origin;
+      double rms2 = 0.0;
+      det->edge_contrast = det->edge_sigma_px = 0.0;
+      for (const EdgeCurve& e : edges) {
+        det->edge_contrast += 0.25 * e.b;
+        det->edge_sigma_px += 0.25 * e.sigma;
+        rms2 += 0.25 * e.rms * e.rms;
       }
+      det->edge_rms = std::sqrt(rms2);
+      return true;
     }
-    return sum / 9.0;
-  };
-  // Threshold: midway between the black border and the white quiet zone.
-  double black = 0.0, white = 0.0;
-  for (int k = 0; k < kTagCells; ++k) {
-    const double t = k + 0.5;
-    black += sample(t, 0.5) + sample(t, 7.5) + sample(0.5, t) + sample(7.5, t);
-    white += sample(t, -0.5) + sample(t, 8.5) + sample(-0.5, t) + sample(8.5, t);
   }
-  const double threshold = 0.5 * (black + white) / (4.0 * kTagCells);
-  cv::Mat bits(6, 6, CV_8UC1);
-  for (int r = 0; r < 6; ++r) {
-    for (int c = 0; c < 6; ++c) bits.at<uchar>(r, c) = sample(c + 1.5, r + 1.5) > threshold ? 1 : 0;
+  // The edge fit failed: keep a cleanly decoded libapriltag candidate as it is.
+  if (!options.keep_unrefined_tags || candidate.source != TagSource::kAprilTag ||
+      candidate.hamming > options.fallback_max_hamming ||
+      candidate.decision_margin < options.fallback_min_decision_margin) {
+    return false;
   }
-  return dictionary.getDistanceToId(bits, id, false);
+  double contrast = 0.0;
+  det->hamming = Hamming(gray64, local, det->id, options.decode_sharpening, &contrast);
+  if (det->hamming > options.max_hamming) return false;
+  det->edge_fitted = false;
+  det->edge_contrast = contrast;
+  const double v = options.fallback_corner_sigma_px * options.fallback_corner_sigma_px;
+  for (Eigen::Matrix2d& c : det->corner_covariance_px2) c = v * Eigen::Matrix2d::Identity();
+  return true;
 }
 
 }  // namespace
@@ -302,8 +192,23 @@ Status TagDetectionOptions::Validate() const {
     return Status::InvalidArgument("TagDetectionOptions." + field + " = " + FormatNumber(value, 6) +
                                    ": " + rule);
   };
-  if (!(min_tag_side_px >= 8.0 && std::isfinite(min_tag_side_px))) {
-    return bad("min_tag_side_px", min_tag_side_px, "must be finite and >= 8");
+  if (!(quad_decimate == 1.5 || (quad_decimate >= 1.0 && quad_decimate <= 8.0 &&
+                                 quad_decimate == std::floor(quad_decimate)))) {
+    return bad("quad_decimate", quad_decimate, "must be 1.5 or an integer in [1, 8]");
+  }
+  if (!(quad_sigma >= 0.0 && quad_sigma <= 10.0)) return bad("quad_sigma", quad_sigma, "must be in [0, 10]");
+  if (num_threads < 1 || num_threads > 64) return bad("num_threads", num_threads, "must be in [1, 64]");
+  if (!(decode_sharpening >= 0.0 && decode_sharpening <= 10.0)) {
+    return bad("decode_sharpening", decode_sharpening, "must be in [0, 10]");
+  }
+  if (!(candidate_max_megapixels >= 0.5 && std::isfinite(candidate_max_megapixels))) {
+    return bad("candidate_max_megapixels", candidate_max_megapixels, "must be finite and >= 0.5");
+  }
+  if (!use_apriltag && !use_aruco && refinement == TagCornerRefinement::kEdgeFit) {
+    return bad("use_apriltag", 0.0, "and use_aruco are both false: no candidates");
+  }
+  if (!(min_tag_side_px >= 6.0 && std::isfinite(min_tag_side_px))) {
+    return bad("min_tag_side_px", min_tag_side_px, "must be finite and >= 6");
   }
   if (!(edge_corner_exclusion_px >= 1.0 && edge_corner_exclusion_px <= 50.0)) {
     return bad("edge_corner_exclusion_px", edge_corner_exclusion_px, "must be in [1, 50]");
@@ -320,8 +225,14 @@ Status TagDetectionOptions::Validate() const {
   if (max_hamming < 0 || max_hamming > kTag36h11MaxCorrectionBits) {
     return bad("max_hamming", max_hamming, "must be in [0, 5]");
   }
-  if (!(candidate_max_megapixels >= 0.5 && std::isfinite(candidate_max_megapixels))) {
-    return bad("candidate_max_megapixels", candidate_max_megapixels, "must be finite and >= 0.5");
+  if (fallback_max_hamming < 0 || fallback_max_hamming > 2) {
+    return bad("fallback_max_hamming", fallback_max_hamming, "must be in [0, 2]");
+  }
+  if (!(fallback_min_decision_margin >= 0.0 && std::isfinite(fallback_min_decision_margin))) {
+    return bad("fallback_min_decision_margin", fallback_min_decision_margin, "must be finite and >= 0");
+  }
+  if (!(fallback_corner_sigma_px > 0.0 && std::isfinite(fallback_corner_sigma_px))) {
+    return bad("fallback_corner_sigma_px", fallback_corner_sigma_px, "must be finite and > 0");
   }
   if (subpix_half_window_px < 1 || subpix_half_window_px > 50) {
     return bad("subpix_half_window_px", subpix_half_window_px, "must be in [1, 50]");
@@ -349,8 +260,9 @@ Result<std::vector<TagDetection>> DetectTags(const cv::Mat& image, const TagDete
     cv::cvtColor(image, gray, cv::COLOR_BGR2GRAY);
   } else if (image.type() == CV_16UC1) {
     gray = image;
-    // Stretch to 8 bits for aruco by the image's maximum, so that 10- or
-    // 12-bit data in a 16-bit container are not crushed to a few levels.
+    // Stretch to 8 bits for the candidate search by the image's maximum, so
+    // that 10- or 12-bit data in a 16-bit container are not crushed to a few
+    // levels.
     double lo = 0.0, hi = 0.0;
     cv::minMaxLoc(gray, &lo, &hi);
     scale_to_8bit = 255.0 / std::max(hi, 1.0);
@@ -367,126 +279,72 @@ Result<std::vector<TagDetection>> DetectTags(const cv::Mat& image, const TagDete
     gray.convertTo(gray8, CV_8U, scale_to_8bit);
   }
 
-  const cv::Ptr<cv::aruco::Dictionary> dictionary =
-      cv::aruco::getPredefinedDictionary(cv::aruco::DICT_APRILTAG_36h11);
-  cv::Ptr<cv::aruco::DetectorParameters> params = cv::aruco::DetectorParameters::create();
-  switch (options.refinement) {
-    case TagCornerRefinement::kOpenCvAprilTag:
-      params->cornerRefinementMethod = cv::aruco::CORNER_REFINE_APRILTAG;
-      break;
-    case TagCornerRefinement::kOpenCvSubpix:
-      params->cornerRefinementMethod = cv::aruco::CORNER_REFINE_SUBPIX;
-      break;
-    default:
-      params->cornerRefinementMethod = cv::aruco::CORNER_REFINE_NONE;
-  }
-  // More adaptive-threshold windows (3, 7, .., 23 px) than the default (3, 13,
-  // 23) find tilted tags with a narrow quiet zone; candidates closer than
-  // aruco's default distance are kept (the black square and its quiet zone
-  // make two close quads) and duplicates removed below.
-  params->adaptiveThreshWinSizeStep = 4;
-  params->minMarkerDistanceRate = 0.01;
-  params->cornerRefinementWinSize = options.subpix_half_window_px;
-  params->cornerRefinementMinAccuracy = 0.001;
-  params->cornerRefinementMaxIterations = 100;
-  params->errorCorrectionRate = static_cast<double>(options.max_hamming) / kTag36h11MaxCorrectionBits;
-  std::vector<std::vector<cv::Point2f>> quads;
-  std::vector<int> ids;
-  // Large images: candidates in a reduced copy (the edge fit refines them at
-  // full resolution).
+  // Candidates. Large images (edge fit only): in a reduced copy, refined at
+  // full resolution.
+  const bool edge_fit = options.refinement == TagCornerRefinement::kEdgeFit;
   int factor = 1;
-  if (options.refinement == TagCornerRefinement::kEdgeFit) {
+  if (edge_fit) {
     const double megapixels = static_cast<double>(gray8.total()) * 1e-6;
     while (megapixels / (factor * factor) > options.candidate_max_megapixels) ++factor;
   }
+  cv::Mat searched = gray8;
   if (factor > 1) {
-    cv::Mat reduced;
-    cv::resize(gray8, reduced, cv::Size(gray8.cols / factor, gray8.rows / factor), 0.0, 0.0,
-               cv::INTER_AREA);
-    cv::aruco::detectMarkers(reduced, dictionary, quads, ids, params);
+    cv::resize(gray8, searched, cv::Size(gray8.cols / factor, gray8.rows / factor), 0.0, 0.0, cv::INTER_AREA);
+  }
+  std::vector<TagCandidate> candidates;
+  if (edge_fit && options.use_apriltag) {
+    tag_internal::AprilTagSettings at;
+    at.quad_decimate = options.quad_decimate;
+    at.quad_sigma = options.quad_sigma;
+    at.nthreads = options.num_threads;
+    at.refine_edges = options.refine_edges;
+    at.decode_sharpening = options.decode_sharpening;
+    at.max_bits_corrected = std::min(options.max_hamming, 2);
+    Result<std::vector<TagCandidate>> found = tag_internal::FindAprilTagCandidates(searched, at);
+    OPL_RETURN_IF_ERROR(found.status());
+    // The clearest decodes first: they win over duplicates.
+    std::stable_sort(found->begin(), found->end(), [](const TagCandidate& a, const TagCandidate& b) {
+      return a.decision_margin > b.decision_margin;
+    });
+    candidates = std::move(*found);
+  }
+  if (!edge_fit || options.use_aruco) {
+    std::vector<TagCandidate> aruco = ArucoCandidates(searched, options);
+    candidates.insert(candidates.end(), aruco.begin(), aruco.end());
+  }
+  if (factor > 1) {
     // Pixel centres: reduced (x', y') is full-resolution f x' + (f - 1) / 2.
-    const float f = static_cast<float>(factor), offset = 0.5f * (f - 1.0f);
-    for (auto& quad : quads) {
-      for (cv::Point2f& p : quad) p = cv::Point2f(f * p.x + offset, f * p.y + offset);
+    const double f = factor, offset = 0.5 * (f - 1.0);
+    for (TagCandidate& c : candidates) {
+      for (Eigen::Vector2d& p : c.corners_px) p = f * p + Eigen::Vector2d(offset, offset);
     }
-  } else {
-    cv::aruco::detectMarkers(gray8, dictionary, quads, ids, params);
   }
 
   std::vector<TagDetection> detections;
-  for (size_t k = 0; k < ids.size(); ++k) {
-    if (quads[k].size() != 4) continue;
-    TagDetection det;
-    det.id = ids[k];
-    Eigen::Vector2d centre = Eigen::Vector2d::Zero();
-    double side = 0.0;
-    for (int c = 0; c < 4; ++c) {
-      det.corners_px[c] = Eigen::Vector2d(quads[k][c].x, quads[k][c].y);
-      det.corner_covariance_px2[c].setZero();
-      centre += 0.25 * det.corners_px[c];
+  for (const TagCandidate& candidate : candidates) {
+    const double side = Side(candidate.corners_px);
+    if (!(side >= options.min_tag_side_px)) continue;
+    // Every corner at least 1 px inside the image: libapriltag, unlike aruco,
+    // proposes tags cut by the image border, whose edge fits are biased with
+    // a tiny covariance (one such tag, 0.08 px off with a reported 0.005 px,
+    // took a noise-free calibration in tests/pipeline from 1.4 to 8.8 urad).
+    const double inset = 1.0;
+    bool inside = true;
+    for (const Eigen::Vector2d& p : candidate.corners_px) {
+      inside = inside && p.x() >= inset && p.y() >= inset && p.x() <= gray.cols - 1 - inset &&
+               p.y() <= gray.rows - 1 - inset;
     }
-    for (int c = 0; c < 4; ++c) side += 0.25 * (det.corners_px[(c + 1) % 4] - det.corners_px[c]).norm();
-    if (side < options.min_tag_side_px) continue;
-    // The same tag found twice (aruco keeps close quads): refine it once.
+    if (!inside) continue;
+    // The same tag proposed twice (by both detectors, or aruco's black square
+    // and quiet zone): the first one refined is kept.
+    const Eigen::Vector2d centre = Centre(candidate.corners_px);
     bool duplicate = false;
     for (const TagDetection& other : detections) {
-      if (other.id != det.id) continue;
-      Eigen::Vector2d other_centre = Eigen::Vector2d::Zero();
-      for (int c = 0; c < 4; ++c) other_centre += 0.25 * other.corners_px[c];
-      if ((other_centre - centre).norm() < 0.25 * side) duplicate = true;
+      if (other.id == candidate.id && (Centre(other.corners_px) - centre).norm() < 0.35 * side) duplicate = true;
     }
     if (duplicate) continue;
-
-    // The pixels around the tag, as doubles (the edge fit and the id check
-    // read nothing farther than the band from the quad); coordinates in the
-    // window are shifted by its origin.
-    const double margin = 2.0 * options.max_edge_band_px + 8.0 + 0.1 * side;
-    double x0 = centre.x(), x1 = centre.x(), y0 = centre.y(), y1 = centre.y();
-    for (const Eigen::Vector2d& c : det.corners_px) {
-      x0 = std::min(x0, c.x()), x1 = std::max(x1, c.x());
-      y0 = std::min(y0, c.y()), y1 = std::max(y1, c.y());
-    }
-    const int wx0 = std::clamp(static_cast<int>(std::floor(x0 - margin)), 0, gray.cols - 1);
-    const int wy0 = std::clamp(static_cast<int>(std::floor(y0 - margin)), 0, gray.rows - 1);
-    const int wx1 = std::clamp(static_cast<int>(std::ceil(x1 + margin)), 0, gray.cols - 1);
-    const int wy1 = std::clamp(static_cast<int>(std::ceil(y1 + margin)), 0, gray.rows - 1);
-    const cv::Rect window(wx0, wy0, wx1 - wx0 + 1, wy1 - wy0 + 1);
-    cv::Mat gray64;
-    gray(window).convertTo(gray64, CV_64F);
-    const Eigen::Vector2d origin(wx0, wy0);
-    for (Eigen::Vector2d& c : det.corners_px) c -= origin;
-    centre -= origin;
-
-    if (options.refinement == TagCornerRefinement::kEdgeFit) {
-      const double band_px =
-          std::max(1.0, std::min(options.max_edge_band_px, options.edge_band_cells * side / kTagCells));
-      std::array<EdgeCurve, 4> edges;
-      bool ok = true;
-      for (int e = 0; e < 4 && ok; ++e) {
-        ok = FitEdge(gray64, det.corners_px[e], det.corners_px[(e + 1) % 4], centre, band_px, options,
-                     &edges[e]);
-      }
-      if (!ok) continue;
-      std::array<Eigen::Vector2d, 4> refined;
-      for (int c = 0; c < 4 && ok; ++c) {
-        // Corner c joins edge c-1 (from corner c-1 to c) and edge c.
-        ok = IntersectEdges(edges[(c + 3) % 4], edges[c], det.corners_px[c], &refined[c],
-                            &det.corner_covariance_px2[c]);
-      }
-      if (!ok) continue;
-      det.corners_px = refined;
-      double rms2 = 0.0;
-      for (const EdgeCurve& e : edges) {
-        det.edge_contrast += 0.25 * e.b;
-        det.edge_sigma_px += 0.25 * e.sigma;
-        rms2 += 0.25 * e.rms * e.rms;
-      }
-      det.edge_rms = std::sqrt(rms2);
-    }
-    det.hamming = Hamming(gray64, det.corners_px, det.id, *dictionary);
-    for (Eigen::Vector2d& c : det.corners_px) c += origin;
-    if (det.hamming > options.max_hamming) continue;
-    detections.push_back(det);
+    TagDetection det;
+    if (RefineCandidate(gray, candidate, options, &det)) detections.push_back(det);
   }
   std::stable_sort(detections.begin(), detections.end(),
                    [](const TagDetection& a, const TagDetection& b) { return a.id < b.id; });

@@ -1,7 +1,8 @@
 // Benchmark of the image front end (issue 6): examples/scene_18mp.json, four
 // 18 MP cameras (4912 x 3684) at about 3 m, two grids shot one at a time:
 // 8 images to a scale factor on 2 threads (target: 10 s wall), and the
-// detection alone per image (spots; tags). The images are rendered once into
+// detection alone per image (spots; tags: target 150 ms on 2 threads, with
+// libapriltag-only and aruco-only candidates as references). The images are rendered once into
 // a cache folder ($TMPDIR/opl_bench_scene_18mp; rendering is not timed and
 // takes about a minute the first time).
 //
@@ -110,20 +111,39 @@ void BM_Scene18MP_SpotDetectionPerImage(benchmark::State& state) {
 }
 BENCHMARK(BM_Scene18MP_SpotDetectionPerImage)->Unit(benchmark::kMillisecond)->UseRealTime();
 
-void BM_Scene18MP_TagDetectionPerImage(benchmark::State& state) {
+// Tags per image on 2 threads (libapriltag's nthreads; OpenCV's own pool for
+// aruco), with the references: libapriltag's candidates alone, aruco's alone
+// (the detector before issue 17), each refined by the edge fit.
+void TagDetectionPerImage(benchmark::State& state, bool use_apriltag, bool use_aruco) {
   const cv::Mat image = FirstImage();
   if (image.empty()) {
     state.SkipWithError("no image");
     return;
   }
+  TagDetectionOptions options;
+  options.num_threads = 2;
+  options.use_apriltag = use_apriltag;
+  options.use_aruco = use_aruco;
   size_t n = 0;
   for (auto _ : state) {
-    Result<std::vector<TagDetection>> r = DetectTags(image);
+    Result<std::vector<TagDetection>> r = DetectTags(image, options);
     n = r.ok() ? r->size() : 0;
   }
   state.counters["tags"] = static_cast<double>(n);
 }
+void BM_Scene18MP_TagDetectionPerImage(benchmark::State& state) {
+  const TagDetectionOptions defaults;
+  TagDetectionPerImage(state, defaults.use_apriltag, defaults.use_aruco);
+}
 BENCHMARK(BM_Scene18MP_TagDetectionPerImage)->Unit(benchmark::kMillisecond)->UseRealTime();
+void BM_Scene18MP_TagDetectionPerImage_AprilTagOnly(benchmark::State& state) {
+  TagDetectionPerImage(state, true, false);
+}
+BENCHMARK(BM_Scene18MP_TagDetectionPerImage_AprilTagOnly)->Unit(benchmark::kMillisecond)->UseRealTime();
+void BM_Scene18MP_TagDetectionPerImage_ArucoOnly(benchmark::State& state) {
+  TagDetectionPerImage(state, false, true);
+}
+BENCHMARK(BM_Scene18MP_TagDetectionPerImage_ArucoOnly)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 void BM_Scene18MP_ReferenceReadEightPngs(benchmark::State& state) {
   const Fixture& f = Scene18Mp();

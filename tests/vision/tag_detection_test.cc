@@ -14,6 +14,7 @@
 #include "opl/core/format.h"
 #include "opl/lab/planar_target_image.h"
 #include "opl/sim/random.h"
+#include "vision/apriltag_candidates.h"
 
 namespace opl {
 namespace {
@@ -238,6 +239,101 @@ TEST(DetectTags, SixteenBitImageGivesTheSameCorners) {
   EXPECT_LT(((*dets12)[0].corners_px[0] - r16->tags[0].corners_px[0]).norm(), 0.02);
 }
 
+// libapriltag's conventions, converted in one place
+// (src/vision/apriltag_candidates.h): its pixel (0, 0) is the first pixel's
+// top-left corner and its corners run top-right, top-left, bottom-left,
+// bottom-right as printed. Checked on rendered tags with known corners at
+// rolls of 0, 90, 180 and 270 degrees and in between: a wrong corner order
+// moves a corner by a whole side, a missing half-pixel shift moves the mean
+// by (0.5, 0.5).
+TEST(AprilTagCandidates, PixelConventionAndCornerOrderMatchOpl) {
+  Camera camera = TestCamera();
+  camera.intrinsics.k1 = camera.intrinsics.k2 = camera.intrinsics.p1 = camera.intrinsics.p2 = 0.0;
+  Result<PlanarTargetRenderer> renderer = PlanarTargetRenderer::Create(camera, 2);
+  ASSERT_TRUE(renderer.ok());
+  std::vector<PlanarTarget> targets;
+  const double rolls_deg[] = {0.0, 90.0, 180.0, 270.0, 33.0, 201.0};
+  for (int k = 0; k < 6; ++k) {
+    const double x = -0.2 + 0.2 * (k % 3);
+    const double y = k < 3 ? -0.09 : 0.09;
+    Result<PlanarTarget> t = MakeTagTarget(100 + k, 0.08,
+                                           Rigid3d(TiltRotation(0.3, 1.0 + k, rolls_deg[k] * kPi / 180.0),
+                                                   Eigen::Vector3d(x, y, 1.0)));
+    ASSERT_TRUE(t.ok()) << t.status().ToString();
+    targets.push_back(*t);
+  }
+  TargetRenderOptions ro;
+  ro.blur_sigma_px = 0.5;
+  Result<RenderedTargetImage> rendered = renderer->Render(targets, ro);
+  ASSERT_TRUE(rendered.ok()) << rendered.status().ToString();
+  for (int decimate : {1, 2}) {
+    tag_internal::AprilTagSettings settings;
+    settings.quad_decimate = decimate;
+    Result<std::vector<tag_internal::TagCandidate>> found =
+        tag_internal::FindAprilTagCandidates(rendered->image, settings);
+    ASSERT_TRUE(found.ok()) << found.status().ToString();
+    ASSERT_EQ(found->size(), 6u) << "quad_decimate " << decimate;
+    Eigen::Vector2d mean_offset = Eigen::Vector2d::Zero();
+    double max_error = 0.0;
+    for (const tag_internal::TagCandidate& c : *found) {
+      const RenderedTag& truth = rendered->tags[static_cast<size_t>(c.id - 100)];
+      ASSERT_EQ(truth.id, c.id);
+      EXPECT_EQ(c.source, TagSource::kAprilTag);
+      EXPECT_EQ(c.hamming, 0);
+      for (int k = 0; k < 4; ++k) {
+        const Eigen::Vector2d e = c.corners_px[k] - truth.corners_px[k];
+        mean_offset += e / 24.0;
+        max_error = std::max(max_error, e.norm());
+      }
+    }
+    std::printf("libapriltag corners (quad_decimate %d) after conversion: mean offset (%.3f, %.3f) px, max %.3f px\n",
+                decimate, mean_offset.x(), mean_offset.y(), max_error);
+    EXPECT_LT(mean_offset.norm(), 0.1) << "quad_decimate " << decimate;
+    EXPECT_LT(max_error, 0.4) << "quad_decimate " << decimate;
+  }
+  // The conversion itself, on an upright tag's corners as libapriltag gives
+  // them (measured: top-right, top-left, bottom-left, bottom-right).
+  const double p[4][2] = {{130.0, 60.0}, {50.0, 60.0}, {50.0, 140.0}, {130.0, 140.0}};
+  const std::array<Eigen::Vector2d, 4> opl = tag_internal::OplCornersFromAprilTag(p);
+  EXPECT_EQ(opl[0], Eigen::Vector2d(49.5, 59.5));    // top-left
+  EXPECT_EQ(opl[1], Eigen::Vector2d(129.5, 59.5));   // top-right
+  EXPECT_EQ(opl[2], Eigen::Vector2d(129.5, 139.5));  // bottom-right
+  EXPECT_EQ(opl[3], Eigen::Vector2d(49.5, 139.5));   // bottom-left
+}
+
+// libapriltag 3.3 crashes on tiny images (AprilRobotics/apriltag#422): they
+// never reach it, and give no tag rather than an error. ASan checks the rest.
+TEST(DetectTags, TinyAndOddImagesAreSafe) {
+  for (const cv::Size size : {cv::Size(1, 1), cv::Size(5, 5), cv::Size(7, 3), cv::Size(17, 17), cv::Size(31, 2),
+                              cv::Size(40, 40), cv::Size(64, 33)}) {
+    for (uchar level : {0, 255}) {
+      for (double decimate : {1.0, 1.5, 4.0}) {
+        TagDetectionOptions options;
+        options.quad_decimate = decimate;
+        Result<std::vector<TagDetection>> dets = DetectTags(cv::Mat(size, CV_8UC1, cv::Scalar(level)), options);
+        ASSERT_TRUE(dets.ok()) << size << ": " << dets.status().ToString();
+        EXPECT_TRUE(dets->empty());
+      }
+    }
+  }
+  // A region of interest (stride larger than the width) is read correctly:
+  // the same tags as in the whole image.
+  const RenderedTargetImage& rendered = Issue6Images().images[1];
+  const cv::Rect roi(100, 0, rendered.image.cols - 100, rendered.image.rows);
+  Result<std::vector<TagDetection>> whole = DetectTags(rendered.image);
+  Result<std::vector<TagDetection>> part = DetectTags(rendered.image(roi));
+  ASSERT_TRUE(whole.ok() && part.ok());
+  int common = 0;
+  for (const TagDetection& a : *whole) {
+    for (const TagDetection& b : *part) {
+      if (a.id != b.id) continue;
+      ++common;
+      EXPECT_LT((b.corners_px[0] + Eigen::Vector2d(100, 0) - a.corners_px[0]).norm(), 1e-6) << a.id;
+    }
+  }
+  EXPECT_GE(common, 3);
+}
+
 TEST(DetectTags, BadInputGivesAClearStatus) {
   Result<std::vector<TagDetection>> empty = DetectTags(cv::Mat());
   ASSERT_FALSE(empty.ok());
@@ -253,6 +349,32 @@ TEST(DetectTags, BadInputGivesAClearStatus) {
   Result<std::vector<TagDetection>> bad = DetectTags(cv::Mat(100, 100, CV_8UC1, cv::Scalar(0)), options);
   ASSERT_FALSE(bad.ok());
   EXPECT_NE(bad.status().message().find("edge_band_cells = 1.5"), std::string::npos) << bad.status().message();
+
+  // libapriltag's tunables are checked before it sees them.
+  const cv::Mat blank(100, 100, CV_8UC1, cv::Scalar(0));
+  auto message = [&](const TagDetectionOptions& o) {
+    Result<std::vector<TagDetection>> r = DetectTags(blank, o);
+    EXPECT_FALSE(r.ok());
+    return r.ok() ? std::string() : r.status().message();
+  };
+  TagDetectionOptions o;
+  o.quad_decimate = 2.5;  // libapriltag would decimate by 2 and scale back by 2.5
+  EXPECT_NE(message(o).find("quad_decimate = 2.5"), std::string::npos) << message(o);
+  o = TagDetectionOptions();
+  o.quad_sigma = -1.0;
+  EXPECT_NE(message(o).find("quad_sigma = -1"), std::string::npos) << message(o);
+  o = TagDetectionOptions();
+  o.num_threads = 0;
+  EXPECT_NE(message(o).find("num_threads = 0"), std::string::npos) << message(o);
+  o = TagDetectionOptions();
+  o.decode_sharpening = -0.5;
+  EXPECT_NE(message(o).find("decode_sharpening = -0.5"), std::string::npos) << message(o);
+  o = TagDetectionOptions();
+  o.use_apriltag = o.use_aruco = false;
+  EXPECT_NE(message(o).find("no candidates"), std::string::npos) << message(o);
+  o = TagDetectionOptions();
+  o.fallback_max_hamming = 3;
+  EXPECT_NE(message(o).find("fallback_max_hamming = 3"), std::string::npos) << message(o);
 }
 
 }  // namespace

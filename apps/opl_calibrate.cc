@@ -51,6 +51,7 @@ struct Args {
   int threads = 0;
   bool one_pose_per_camera = false;
   bool verbose = false;
+  std::string spot_channel = "red";
 };
 
 // Reads the artifact's two targets from the targets file and computes the
@@ -168,6 +169,7 @@ int RunImages(const Args& args) {
   options.calibrate.source.outlier_threshold = args.outlier_threshold;
   options.front_end.num_threads = args.threads;
   options.front_end.one_pose_per_camera = args.one_pose_per_camera;
+  options.front_end.spot_channel = *ParseSpotChannel(args.spot_channel);  // checked by CLI11
   cli::ProgressBar bar("images", cli::StderrIsTerminal());
   options.front_end.progress = bar.StageCallback("detect");
   Result<ImageCalibrationReport> report =
@@ -222,6 +224,12 @@ int Run(int argc, char** argv) {
   app.add_option("--threads", args.threads,
                  "With --images: threads for the detection and for the re-solves that\n"
                  "carry the spots' shared errors, >= 0; 0 = every core")
+      ->capture_default_str();
+  app.add_option("--spot-channel", args.spot_channel,
+                 "With --images, colour photographs: the channel in which laser spots are\n"
+                 "detected: red (red lasers, the default), green, blue or luma; tags are\n"
+                 "always detected in luma, grey images used as they are (docs/images.md)")
+      ->check(CLI::IsMember({"red", "green", "blue", "luma"}))
       ->capture_default_str();
   app.add_flag("--verbose", args.verbose,
                "Show the solvers' own messages (Ceres, on stderr; silenced by default) and,\n"

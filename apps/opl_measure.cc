@@ -33,6 +33,7 @@ struct Args {
   int threads = 0;
   bool one_pose_per_camera = false;
   bool verbose = false;
+  std::string spot_channel = "red";
 };
 
 // opl_measure --images: the image front end, then the measurement.
@@ -59,6 +60,7 @@ int RunImages(const Args& args) {
   ImageMeasureOptions options;
   options.front_end.num_threads = args.threads;
   options.front_end.one_pose_per_camera = args.one_pose_per_camera;
+  options.front_end.spot_channel = *ParseSpotChannel(args.spot_channel);  // checked by CLI11
   cli::ProgressBar bar("images", cli::StderrIsTerminal());
   options.front_end.progress = bar.StageCallback("detect");
   Result<ImageMeasureReport> report =
@@ -158,6 +160,12 @@ int Run(int argc, char** argv) {
       ->type_name("FILE");
   app.add_flag("--json", args.json,
                "Print one JSON object (format opl.measure_report) instead of the text summary");
+  app.add_option("--spot-channel", args.spot_channel,
+                 "With --images, colour photographs: the channel in which laser spots are\n"
+                 "detected: red (red lasers, the default), green, blue or luma; tags are\n"
+                 "always detected in luma, grey images used as they are (docs/images.md)")
+      ->check(CLI::IsMember({"red", "green", "blue", "luma"}))
+      ->capture_default_str();
   app.add_flag("--verbose", args.verbose,
                "Show the solvers' own messages (Ceres, on stderr; silenced by default) and,\n"
                "with --images, the bundle adjustment's report on stderr");

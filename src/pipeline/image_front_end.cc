@@ -40,31 +40,22 @@ bool IsLaserSpot(const DetectedSpot& s, const FrontEndOptions& options) {
   return largest <= options.max_spot_center_sigma_px * options.max_spot_center_sigma_px;
 }
 
-// Reads a shot's image as one grey channel, 8 or 16 bit.
-Result<cv::Mat> ReadShotImage(const std::string& path, const CameraIntrinsics& k,
-                              const std::string& camera_name, const std::string& file) {
-  std::error_code ec;
-  if (!std::filesystem::exists(path, ec)) {
-    return Status::IoError(path + ": no such image");
-  }
-  cv::Mat image = cv::imread(path, cv::IMREAD_ANYDEPTH | cv::IMREAD_ANYCOLOR);
-  if (image.empty()) return Status::IoError(path + ": cannot read the image (not an image file?)");
-  if (image.channels() == 3) {
-    cv::cvtColor(image, image, cv::COLOR_BGR2GRAY);
-  } else if (image.channels() == 4) {
-    cv::cvtColor(image, image, cv::COLOR_BGRA2GRAY);
-  }
-  if (image.depth() != CV_8U && image.depth() != CV_16U) {
-    return Status::InvalidArgument(file + ": image type " + OpenCvTypeName(image.type()) +
-                                   " is not supported (8 or 16 bit)");
-  }
+// Reads a shot's image (vision/shot_image.h: sensor pixels, tags in luma,
+// spots in options.spot_channel) and checks it against its camera's size.
+Result<ShotImage> ReadAndCheckShotImage(const std::string& path, const CameraIntrinsics& k,
+                                        const std::string& camera_name, const std::string& file,
+                                        SpotChannel channel) {
+  Result<ShotImage> shot = ReadShotImage(path, channel);
+  if (!shot.ok()) return shot.status();
+  const cv::Mat& image = shot->for_tags;
   if (image.cols != k.width_px || image.rows != k.height_px) {
     return Status::InvalidArgument(file + ": image is " + std::to_string(image.cols) + " x " +
                                    std::to_string(image.rows) + " but camera '" + camera_name +
                                    "' is calibrated for " + std::to_string(k.width_px) + " x " +
-                                   std::to_string(k.height_px));
+                                   std::to_string(k.height_px) +
+                                   " (sensor pixels: an EXIF orientation tag is not applied)");
   }
-  return image;
+  return shot;
 }
 
 // True when the pixel lies inside the quadrilateral of a tag (grown by
@@ -317,18 +308,18 @@ Status FrontEndRun::Detect() {
     const SceneShot& shot = scene.shots[static_cast<size_t>(i)];
     const std::string path = (std::filesystem::path(images_dir) / shot.file).string();
     Status& error = errors[static_cast<size_t>(i)];
-    Result<cv::Mat> image =
-        ReadShotImage(path, intrinsics[static_cast<size_t>(i)], shot.camera, shot.file);
+    Result<ShotImage> image = ReadAndCheckShotImage(path, intrinsics[static_cast<size_t>(i)],
+                                                    shot.camera, shot.file, options.spot_channel);
     if (!image.ok()) {
       error = image.status();
       return;
     }
-    Result<std::vector<TagDetection>> tags = DetectTags(*image, options.tags);
+    Result<std::vector<TagDetection>> tags = DetectTags(image->for_tags, options.tags);
     if (!tags.ok()) {
       error = Status(tags.status().code(), shot.file + ": " + tags.status().message());
       return;
     }
-    Result<SpotDetectionResult> spots = DetectSpots(*image, options.spots);
+    Result<SpotDetectionResult> spots = DetectSpots(image->for_spots, options.spots);
     if (!spots.ok()) {
       error = Status(spots.status().code(), shot.file + ": " + spots.status().message());
       return;

@@ -108,6 +108,42 @@ TEST(IndependentRendersVerbose, ShowsTheAdjustmentReportOnStderr) {
   EXPECT_THAT(r.err, HasSubstr("point covariances: first order"));
 }
 
+// A camera held in portrait writes an EXIF orientation tag and leaves the
+// sensor's pixels as they are. The front end reads sensor pixels (the
+// calibration's), so the same scene with Orientation = 6 (90 deg) in every
+// JPEG measures exactly as without it; honouring the tag would give
+// images of the wrong size (exit 3).
+TEST(IndependentRendersExif, OrientationTagIsNotApplied) {
+  const std::string dir = kData + "jpeg_seed1";
+  testing_support::TempDir tmp;
+  std::ifstream in(dir + "/scene.json");
+  const nlohmann::json scene = nlohmann::json::parse(in);
+  // An APP1 EXIF segment whose only entry is Orientation (0x0112) = 6.
+  const std::string app1("\xFF\xE1\x00\x22"
+                         "Exif\0\0"
+                         "II*\0\x08\0\0\0"
+                         "\x01\0"
+                         "\x12\x01\x03\0\x01\0\0\0\x06\0\0\0"
+                         "\0\0\0\0",
+                         36);
+  for (const auto& shot : scene["shots"]) {
+    const std::string file = shot["file"].get<std::string>();
+    const std::string jpeg = testing_support::ReadAll(dir + "/" + file);
+    ASSERT_EQ(jpeg.substr(0, 2), "\xFF\xD8");
+    tmp.Write(file, jpeg.substr(0, 2) + app1 + jpeg.substr(2));
+  }
+  const std::string args = "--calibration " + dir + "/calibration.json --scene " + dir +
+                           "/scene.json --json --threads 2 --images ";
+  const RunResult tagged = Measure(args + tmp.path());
+  ASSERT_EQ(tagged.exit_code, 0) << tagged.err;
+  const RunResult plain = Measure(args + dir);
+  ASSERT_EQ(plain.exit_code, 0) << plain.err;
+  // The same pixels: the same s up to the threaded solvers' rounding
+  // (4e-10 seen), far below u(s) = 3e-3.
+  EXPECT_NEAR(nlohmann::json::parse(tagged.out)["measure"]["scale_factor"].get<double>(),
+              nlohmann::json::parse(plain.out)["measure"]["scale_factor"].get<double>(), 1e-8);
+}
+
 // A frame tag that only one camera position sees cannot hold the frame:
 // exit 4 naming the tag, its role and why, and nothing else on stderr.
 TEST(IndependentRendersFrame, FrameTagSeenFromOnePositionIsRefused) {

@@ -8,8 +8,10 @@
 //
 // The chain, per scene (lab/scene.h describes the cameras, the tags and the
 // shots; the images are the shots' files in `images_dir`):
-//  1. Every image is read (8/16-bit grey or colour PNG/TIFF/JPEG; colour is
-//     converted to grey) and checked against its camera's calibrated size.
+//  1. Every image is read (8/16-bit grey or colour PNG/TIFF/JPEG; sensor
+//     pixels, an EXIF orientation is not applied; colour: tags in luma,
+//     spots in spot_channel, vision/shot_image.h) and checked against its
+//     camera's calibrated size.
 //  2. Detection, per image, in parallel: coded targets (DetectTags,
 //     vision/tag_detection.h) and laser spots (DetectSpots, vision/
 //     spot_detection.h). Spots inside a detected tag's quad are dropped (its
@@ -60,6 +62,7 @@
 #include "opl/lab/scene.h"
 #include "opl/vision/bundle_adjustment.h"
 #include "opl/vision/camera_model.h"
+#include "opl/vision/shot_image.h"
 #include "opl/vision/spot_detection.h"
 #include "opl/vision/spot_matching.h"
 #include "opl/vision/tag_detection.h"
@@ -67,6 +70,9 @@
 namespace opl {
 
 struct FrontEndOptions {
+  // Colour photographs: the channel in which laser spots are detected (tags
+  // always in luma); vision/shot_image.h. Grey images are used as they are.
+  SpotChannel spot_channel = SpotChannel::kRed;
   TagDetectionOptions tags;
   SpotDetectionOptions spots;
   SpotMatchOptions matching;

@@ -1,0 +1,57 @@
+// Reading a photograph for the front end: the pixels as the sensor wrote
+// them, and the channel in which the laser spots are looked for
+// (docs/images.md, "Photographs: colour, orientation").
+//
+//   Result<ShotImage> shot = ReadShotImage("cam0_A.jpg", SpotChannel::kRed);
+//   DetectTags(shot->for_tags);    // grey (luma): black-and-white tags
+//   DetectSpots(shot->for_spots);  // the laser's channel
+//
+// Orientation. A camera that writes an EXIF orientation tag (portrait
+// shots) leaves the pixels as the sensor read them and asks viewers to
+// rotate. Calibrations are of sensor pixels, so the tag is IGNORED: the
+// image is what the sensor wrote, whatever the tag says
+// (cv::IMREAD_IGNORE_ORIENTATION). A viewer that honours the tag shows it
+// rotated; that is expected.
+//
+// Colour. Tags are black and white: they are detected in the luma image
+// (0.299 R + 0.587 G + 0.114 B, cv::COLOR_BGR2GRAY). A laser spot is
+// detected in the channel of the laser's colour: for a red (e.g. 658 nm)
+// laser the red channel, which keeps the spot's whole contrast, where luma
+// keeps 30% of it while adding the wall's green and blue noise and texture.
+// A grey image is used for both as it is.
+//
+// Errors (Status): IoError naming the file when it is missing or not an
+// image; InvalidArgument for a depth other than 8 or 16 bit (the message
+// names the type).
+#pragma once
+
+#include <string>
+
+#include <opencv2/core.hpp>
+
+#include "opl/core/status.h"
+
+namespace opl {
+
+// The channel of a colour photograph in which laser spots are detected.
+enum class SpotChannel {
+  kRed,    // red lasers (635-670 nm): the default
+  kGreen,  // green lasers (515-532 nm)
+  kBlue,   // blue and violet lasers (405-488 nm)
+  kLuma,   // the grey image (a white or infrared source on a monochrome-like image)
+};
+
+// "red", "green", "blue", "luma".
+const char* SpotChannelName(SpotChannel channel);
+// The inverse of SpotChannelName; InvalidArgument naming the value and the choices.
+Result<SpotChannel> ParseSpotChannel(const std::string& name);
+
+struct ShotImage {
+  cv::Mat for_tags;   // grey, CV_8UC1 or CV_16UC1
+  cv::Mat for_spots;  // grey or the chosen channel, same size and depth
+  int source_channels = 1;  // 1 (grey), 3 (BGR) or 4 (BGRA) as stored in the file
+};
+
+Result<ShotImage> ReadShotImage(const std::string& path, SpotChannel channel);
+
+}  // namespace opl

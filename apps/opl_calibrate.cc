@@ -52,6 +52,7 @@ struct Args {
   bool one_pose_per_camera = false;
   bool verbose = false;
   std::string spot_channel = "red";
+  bool force = false;
 };
 
 // Reads the artifact's two targets from the targets file and computes the
@@ -170,6 +171,7 @@ int RunImages(const Args& args) {
   options.front_end.num_threads = args.threads;
   options.front_end.one_pose_per_camera = args.one_pose_per_camera;
   options.front_end.spot_channel = *ParseSpotChannel(args.spot_channel);  // checked by CLI11
+  options.front_end.force = args.force;
   cli::ProgressBar bar("images", cli::StderrIsTerminal());
   options.front_end.progress = bar.StageCallback("detect");
   Result<ImageCalibrationReport> report =
@@ -231,6 +233,10 @@ int Run(int argc, char** argv) {
                  "always detected in luma, grey images used as they are (docs/images.md)")
       ->check(CLI::IsMember({"red", "green", "blue", "luma"}))
       ->capture_default_str();
+  app.add_flag("--force", args.force,
+               "With --images: measure even when the tag corners scatter more than 3 times\n"
+               "what their covariances say (refused otherwise, exit 4: wrong intrinsics, a\n"
+               "camera that moved); the report then carries a warning");
   app.add_flag("--verbose", args.verbose,
                "Show the solvers' own messages (Ceres, on stderr; silenced by default) and,\n"
                "with --images, the bundle adjustment's report on stderr");

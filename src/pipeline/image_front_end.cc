@@ -29,6 +29,8 @@ struct ImageData {
   std::vector<TagDetection> tags;
   std::vector<DetectedSpot> spots;
   int blobs_rejected = 0;  // FrontEndOptions' spot gates
+  int spots_saturated = 0;
+  bool lossy_jpeg = false;
 };
 
 // The spot gates of FrontEndOptions (min_spot_snr, max_spot_center_sigma_px).
@@ -134,6 +136,20 @@ Status FrontEndOptions::Validate() const {
         min_tag_triangulation_angle_deg < 90.0)) {
     return Status::InvalidArgument("min_tag_triangulation_angle_deg must be in (0, 90), got " +
                                    FormatNumber(min_tag_triangulation_angle_deg));
+  }
+  for (const auto& [name, value] :
+       {std::pair<const char*, double>{"warn_rms_ratio", warn_rms_ratio},
+        {"warn_unmatched_fraction", warn_unmatched_fraction},
+        {"warn_saturated_fraction", warn_saturated_fraction},
+        {"warn_blob_ratio", warn_blob_ratio}}) {
+    if (!(std::isfinite(value) && value > 0.0)) {
+      return Status::InvalidArgument(std::string(name) + " must be finite and > 0, got " +
+                                     FormatNumber(value));
+    }
+  }
+  if (!(std::isfinite(max_tag_rms_ratio) && max_tag_rms_ratio > 1.0)) {
+    return Status::InvalidArgument("max_tag_rms_ratio must be finite and > 1, got " +
+                                   FormatNumber(max_tag_rms_ratio));
   }
   if (!(std::isfinite(min_spot_snr) && min_spot_snr >= 0.0)) {
     return Status::InvalidArgument("min_spot_snr must be finite and >= 0, got " +
@@ -253,6 +269,10 @@ struct FrontEndRun {
   bool EstimateVarianceComponents(int pass);
   Status MatchAndAdjust();    // 5-6 with the variance components
   void PerImageRms();
+  // The warnings of FrontEndOptions::warn_* (after PerImageRms).
+  void WarnOutOfRange();
+  // FrontEndOptions::max_tag_rms_ratio, unless force.
+  Status RefuseBrokenGeometry() const;
   Status MoveToSceneFrame();  // 7
 
   const Scene& scene;
@@ -326,6 +346,7 @@ Status FrontEndRun::Detect() {
     }
     ImageData& d = data[static_cast<size_t>(i)];
     d.tags = std::move(*tags);
+    d.lossy_jpeg = image->lossy_jpeg;
     for (const DetectedSpot& s : spots->spots) {
       bool in_tag = false;
       for (const TagDetection& t : d.tags) {
@@ -334,6 +355,7 @@ Status FrontEndRun::Detect() {
       if (in_tag) continue;
       if (IsLaserSpot(s, options)) {
         d.spots.push_back(s);
+        d.spots_saturated += s.has(kSpotSaturated) ? 1 : 0;
       } else {
         ++d.blobs_rejected;
       }
@@ -348,6 +370,8 @@ Status FrontEndRun::Detect() {
     for (const TagDetection& t : data[static_cast<size_t>(i)].tags) f.tag_ids.push_back(t.id);
     f.spots_detected = static_cast<int>(data[static_cast<size_t>(i)].spots.size());
     f.blobs_rejected = data[static_cast<size_t>(i)].blobs_rejected;
+    f.spots_saturated = data[static_cast<size_t>(i)].spots_saturated;
+    f.lossy_jpeg = data[static_cast<size_t>(i)].lossy_jpeg;
     if (f.tag_ids.empty()) f.notes.push_back("no tag found");
     images_with_tags += f.tag_ids.empty() ? 0 : 1;
   }
@@ -869,6 +893,8 @@ void FrontEndRun::PerImageRms() {
     std::vector<double> spot_sum(static_cast<size_t>(num_images), 0.0);
     std::vector<int> tag_n(static_cast<size_t>(num_images), 0);
     std::vector<int> spot_n(static_cast<size_t>(num_images), 0);
+    std::vector<double> tag_model(static_cast<size_t>(num_images), 0.0);
+    std::vector<double> spot_model(static_cast<size_t>(num_images), 0.0);
     for (size_t k = 0; k < adjusted->data.observations.size(); ++k) {
       const BundleObservation& ob = adjusted->data.observations[k];
       Eigen::Vector2d px;
@@ -881,20 +907,121 @@ void FrontEndRun::PerImageRms() {
           static_cast<int>(k) < num_tag ? tag_refs[k].image
                                         : spot_refs[k - static_cast<size_t>(num_tag)].image);
       const double e2 = (px - ob.pixel_px).squaredNorm();
+      const double model2 = ob.covariance_px2.trace();
       if (static_cast<int>(k) < num_tag_observations) {
         tag_sum[image] += e2;
+        tag_model[image] += model2;
         ++tag_n[image];
       } else {
         spot_sum[image] += e2;
+        spot_model[image] += model2;
         ++spot_n[image];
       }
     }
+    auto rms = [](double sum, int n) { return n ? std::sqrt(sum / (2.0 * n)) : 0.0; };
     for (size_t i = 0; i < static_cast<size_t>(num_images); ++i) {
-      result.images[i].tag_rms_px = tag_n[i] ? std::sqrt(tag_sum[i] / (2.0 * tag_n[i])) : 0.0;
-      result.images[i].spot_rms_px =
-          spot_n[i] ? std::sqrt(spot_sum[i] / (2.0 * spot_n[i])) : 0.0;
+      ImageFindings& f = result.images[i];
+      f.tag_rms_px = rms(tag_sum[i], tag_n[i]);
+      f.spot_rms_px = rms(spot_sum[i], spot_n[i]);
+      f.tag_model_rms_px = rms(tag_model[i], tag_n[i]);
+      // The spots' pixel covariances as the final adjustment used them,
+      // times the a posteriori factor that also scales their 3D covariances.
+      f.spot_model_rms_px = rms(spot_model[i], spot_n[i]) * std::sqrt(spot_point_scale);
     }
   }
+}
+
+void FrontEndRun::WarnOutOfRange() {
+  auto median_of = [&](double ImageFindings::*member) {
+    std::vector<double> v;
+    for (const ImageFindings& f : result.images) {
+      if (f.placed && f.*member > 0.0) v.push_back(f.*member);
+    }
+    if (v.empty()) return 0.0;
+    std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
+    return v[v.size() / 2];
+  };
+  const double median_spot_rms = median_of(&ImageFindings::spot_rms_px);
+  const double median_tag_rms = median_of(&ImageFindings::tag_rms_px);
+  if (result.tag_variance_factor > options.warn_rms_ratio * options.warn_rms_ratio) {
+    result.warnings.push_back(
+        "tag corners scatter " + FormatNumber(std::sqrt(result.tag_variance_factor), 2) +
+        " times (RMS) what their covariances say: wrong intrinsics, a camera that moved, or "
+        "tags not flat?");
+  }
+  std::vector<std::string> jpegs;
+  for (const ImageFindings& f : result.images) {
+    if (f.lossy_jpeg) jpegs.push_back(f.file);
+    const std::string at = f.file + ": ";
+    // An image's RMS above warn_rms_ratio times its model's, or above its
+    // model's and warn_rms_ratio times the median image's (the variance
+    // components are common to all images, so one bad camera mostly shows
+    // against the others).
+    auto check_rms = [&](const char* what, double rms, double model, double median,
+                         const char* hint) {
+      if (!f.placed || !(rms > 0.0)) return;
+      const bool above_model = model > 0.0 && rms > options.warn_rms_ratio * model;
+      const bool above_others =
+          median > 0.0 && rms > options.warn_rms_ratio * median && rms > model;
+      if (!above_model && !above_others) return;
+      result.warnings.push_back(
+          at + what + " RMS " + FormatNumber(rms, 3) + " px: " +
+          (above_model ? FormatNumber(rms / model, 2) + " times its model's " +
+                             FormatNumber(model, 3) + " px"
+                       : FormatNumber(rms / median, 2) + " times the median image's " +
+                             FormatNumber(median, 3) + " px") +
+          " (" + hint + ")");
+    };
+    check_rms("spot", f.spot_rms_px, f.spot_model_rms_px, median_spot_rms,
+              "wrong matches, wrong intrinsics or a camera that moved?");
+    check_rms("tag", f.tag_rms_px, f.tag_model_rms_px, median_tag_rms,
+              "wrong intrinsics, a camera that moved, or tags not flat?");
+    if (f.placed && f.spots_detected >= 10 &&
+        f.spots_detected - f.spots_matched >
+            options.warn_unmatched_fraction * f.spots_detected) {
+      result.warnings.push_back(at + std::to_string(f.spots_detected - f.spots_matched) +
+                                " of its " + std::to_string(f.spots_detected) +
+                                " spots are not matched in other views");
+    }
+    if (f.spots_detected >= 10 &&
+        f.spots_saturated > options.warn_saturated_fraction * f.spots_detected) {
+      result.warnings.push_back(at + std::to_string(f.spots_saturated) + " of its " +
+                                std::to_string(f.spots_detected) +
+                                " spots are saturated (shorten the exposure)");
+    }
+    if (f.blobs_rejected >= 50 &&
+        f.blobs_rejected > options.warn_blob_ratio * std::max(1, f.spots_detected)) {
+      result.warnings.push_back(at + std::to_string(f.blobs_rejected) +
+                                " blobs that are not laser spots (too faint or no centre) for " +
+                                std::to_string(f.spots_detected) +
+                                " spots: clutter, noise or compression");
+    }
+  }
+  if (!jpegs.empty()) {
+    std::string list;
+    for (size_t k = 0; k < jpegs.size() && k < 3; ++k) list += (k ? ", " : "") + jpegs[k];
+    if (jpegs.size() > 3) list += ", ...";
+    result.warnings.push_back(std::to_string(jpegs.size()) + " lossy JPEG image(s) (" + list +
+                              "): compression moves spot and tag centres; prefer PNG or TIFF");
+  }
+}
+
+Status FrontEndRun::RefuseBrokenGeometry() const {
+  const double ratio = std::sqrt(result.tag_variance_factor);
+  if (options.force || !(ratio > options.max_tag_rms_ratio)) return Status::Ok();
+  std::vector<std::pair<double, std::string>> worst;
+  for (const ImageFindings& f : result.images) {
+    if (f.placed) worst.emplace_back(f.tag_rms_px, f.file);
+  }
+  std::sort(worst.rbegin(), worst.rend());
+  std::string names;
+  for (size_t k = 0; k < worst.size() && k < 3; ++k) {
+    names += (k ? ", " : "") + worst[k].second + " " + FormatNumber(worst[k].first, 3) + " px";
+  }
+  return Status::NoSolution(
+      "tag corners scatter " + FormatNumber(ratio, 2) +
+      " times (RMS) what their covariances say (largest tag RMS: " + names +
+      "): wrong intrinsics, a camera that moved, or tags not flat? (FrontEndOptions::force, --force: measure anyway)");
 }
 
 Status FrontEndRun::MoveToSceneFrame() {
@@ -972,6 +1099,8 @@ Result<FrontEndResult> RunImageFrontEnd(const Scene& scene, const std::string& i
   run.GroupShots();
   OPL_RETURN_IF_ERROR(run.MatchAndAdjust());
   run.PerImageRms();
+  run.WarnOutOfRange();
+  OPL_RETURN_IF_ERROR(run.RefuseBrokenGeometry());
   OPL_RETURN_IF_ERROR(run.MoveToSceneFrame());
   return std::move(run.result);
 }

@@ -51,6 +51,10 @@ std::string ImageMeasureReport::ToJson() const {
                       {"placed", f.placed},
                       {"tag_rms_px", f.tag_rms_px},
                       {"spot_rms_px", f.spot_rms_px},
+                      {"tag_model_rms_px", f.tag_model_rms_px},
+                      {"spot_model_rms_px", f.spot_model_rms_px},
+                      {"spots_saturated", f.spots_saturated},
+                      {"lossy_jpeg", f.lossy_jpeg},
                       {"notes", f.notes}});
   }
   doc["images"] = images;

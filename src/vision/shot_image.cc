@@ -1,6 +1,7 @@
 #include "opl/vision/shot_image.h"
 
 #include <filesystem>
+#include <fstream>
 
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -43,6 +44,13 @@ Result<ShotImage> ReadShotImage(const std::string& path, SpotChannel channel) {
   }
   ShotImage shot;
   shot.source_channels = image.channels();
+  {
+    char signature[3] = {0, 0, 0};
+    std::ifstream(path, std::ios::binary).read(signature, 3);
+    shot.lossy_jpeg = static_cast<unsigned char>(signature[0]) == 0xFF &&
+                      static_cast<unsigned char>(signature[1]) == 0xD8 &&
+                      static_cast<unsigned char>(signature[2]) == 0xFF;
+  }
   if (image.channels() == 1) {
     shot.for_tags = image;
     shot.for_spots = image;

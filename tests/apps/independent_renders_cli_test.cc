@@ -11,6 +11,7 @@
 // lines of Ceres/CHOLMOD warnings) and the tool exited 3 blaming a spot's
 // covariance. Before the detector measured the smoothed image's noise, the
 // JPEG images gave 9,000-17,000 blobs each and took over two minutes.
+#include <algorithm>
 #include <fstream>
 #include <iostream>
 #include <map>
@@ -73,6 +74,13 @@ TEST_P(IndependentRenders, MeasuresWithinThreeUncertaintiesAndQuietly) {
     }
   }
   EXPECT_GE(one_position_tags, 2);
+  // The JPEG scene is named lossy (by the files' signature), the PNG not;
+  // nothing out of its model's range on these sound scenes.
+  EXPECT_EQ(warnings.find("lossy JPEG image(s)") != std::string::npos,
+            c.folder == "jpeg_seed1")
+      << warnings;
+  EXPECT_EQ(warnings.find(" RMS "), std::string::npos) << warnings;
+  EXPECT_EQ(warnings.find("tag corners scatter"), std::string::npos) << warnings;
   // Every image placed; every spot of each grid matched, none invented; the
   // spots' residuals at the model's level (0.08-0.12 px measured), not tens of px.
   for (const auto& image : report["images"]) {
@@ -80,6 +88,10 @@ TEST_P(IndependentRenders, MeasuresWithinThreeUncertaintiesAndQuietly) {
     EXPECT_GE(image["spots_matched"].get<int>(), 115) << image["file"];
     EXPECT_LE(image["spots_matched"].get<int>(), 121) << image["file"];
     EXPECT_LT(image["spot_rms_px"].get<double>(), 0.3) << image["file"];
+    // The model's RMS is what the residuals show (0.6-1.0 of it measured).
+    EXPECT_LT(image["spot_rms_px"].get<double>(), 1.5 * image["spot_model_rms_px"].get<double>());
+    EXPECT_GT(image["spot_rms_px"].get<double>(), 0.4 * image["spot_model_rms_px"].get<double>());
+    EXPECT_EQ(image["lossy_jpeg"].get<bool>(), c.folder == "jpeg_seed1");
   }
   const double s = report["measure"]["scale_factor"].get<double>();
   const double u = report["measure"]["u_scale_factor"].get<double>();
@@ -142,6 +154,38 @@ TEST(IndependentRendersExif, OrientationTagIsNotApplied) {
   // (4e-10 seen), far below u(s) = 3e-3.
   EXPECT_NEAR(nlohmann::json::parse(tagged.out)["measure"]["scale_factor"].get<double>(),
               nlohmann::json::parse(plain.out)["measure"]["scale_factor"].get<double>(), 1e-8);
+}
+
+// Wrong intrinsics for one camera (focal length 1% long, as from a zoom
+// touched after calibrating): the tag corners scatter about 12 times their
+// model. Refused (exit 4) naming the worst images, or measured with a
+// warning under --force.
+TEST(IndependentRendersGeometry, WrongIntrinsicsAreRefusedUnlessForced) {
+  const std::string dir = kData + "plain_seed1";
+  std::ifstream in(dir + "/scene.json");
+  nlohmann::json scene = nlohmann::json::parse(in);
+  for (auto& camera : scene["cameras"]) {
+    if (camera["name"] != "cam4") continue;
+    camera["intrinsics"]["fx"] = camera["intrinsics"]["fx"].get<double>() * 1.01;
+    camera["intrinsics"]["fy"] = camera["intrinsics"]["fy"].get<double>() * 1.01;
+  }
+  testing_support::TempDir tmp;
+  const std::string scene_path = tmp.File("scene.json");
+  std::ofstream(scene_path) << scene.dump(1);
+  const std::string args = "--calibration " + dir + "/calibration.json --images " + dir +
+                           " --scene " + scene_path + " --threads 2";
+  const RunResult refused = Measure(args);
+  EXPECT_EQ(refused.exit_code, 4);
+  EXPECT_EQ(refused.out, "");
+  EXPECT_THAT(refused.err, HasSubstr("opl_measure: tag corners scatter "));
+  EXPECT_THAT(refused.err, HasSubstr("(largest tag RMS: cam4_"));
+  EXPECT_EQ(std::count(refused.err.begin(), refused.err.end(), '\n'), 1);
+
+  const RunResult forced = Measure(args + " --force --json");
+  ASSERT_EQ(forced.exit_code, 0) << forced.err;
+  const nlohmann::json report = nlohmann::json::parse(forced.out);
+  EXPECT_THAT(report["warnings"].dump(), HasSubstr("tag corners scatter"));
+  EXPECT_GT(report["tag_variance_factor"].get<double>(), 9.0);
 }
 
 // A frame tag that only one camera position sees cannot hold the frame:

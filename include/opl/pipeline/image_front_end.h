@@ -97,6 +97,26 @@ struct FrontEndOptions {
   // 0.01-0.3 px. min_spot_snr >= 0, max_spot_center_sigma_px > 0.
   double min_spot_snr = 10.0;
   double max_spot_center_sigma_px = 1.0;
+  // Warnings (FrontEndResult::warnings), each naming the image: its spot or
+  // tag RMS above warn_rms_ratio times its model's; more than
+  // warn_unmatched_fraction of its spots unmatched (when it has 10 or more);
+  // more than warn_saturated_fraction of its spots saturated; more blobs
+  // rejected by the spot gates than warn_blob_ratio times its spots (and at
+  // least 50). Lossy JPEG images are named in one warning. All > 0.
+  double warn_rms_ratio = 3.0;
+  double warn_unmatched_fraction = 0.5;
+  double warn_saturated_fraction = 0.5;
+  double warn_blob_ratio = 2.0;
+  // Refusal: when the tag corners scatter more than max_tag_rms_ratio times
+  // what their covariances say (the square root of their variance factor
+  // after the first adjustment), the geometry is wrong (intrinsics, a
+  // camera that moved between shots sharing a pose, tags not flat) and the
+  // front end returns NoSolution naming the images with the largest tag
+  // RMS, unless `force` (then it is a warning). Tag corners are not
+  // speckled: on sound scenes their factor is 1-2 (RMS ratio 1-1.4); a 1%
+  // focal length error in one of five cameras gives 12. > 1.
+  double max_tag_rms_ratio = 3.0;
+  bool force = false;
   // Floor of a spot's pixel standard deviation [px], >= 0: the detector's
   // covariance is enlarged to at least this (it underestimates speckle).
   double min_spot_sigma_px = 0.02;
@@ -146,9 +166,15 @@ struct ImageFindings {
   int spots_detected = 0;         // laser spots detected (outside tags, past the gates)
   int blobs_rejected = 0;         // detections outside tags that failed the spot gates
   int spots_matched = 0;          // of those, in a 3D spot
+  int spots_saturated = 0;        // of the spots, those with a saturated pixel
+  bool lossy_jpeg = false;        // the file is a JPEG
   bool placed = false;            // its pose was found
   double tag_rms_px = 0.0;        // RMS tag corner residual after the adjustment
   double spot_rms_px = 0.0;       // RMS spot residual after the adjustment
+  // What the covariances predict for those RMS (sqrt of the mean of
+  // trace / 2 over the image's observations, variance components included).
+  double tag_model_rms_px = 0.0;
+  double spot_model_rms_px = 0.0;
   std::vector<std::string> notes; // why something was not used
 };
 

@@ -50,6 +50,7 @@ struct ShotImage {
   cv::Mat for_tags;   // grey, CV_8UC1 or CV_16UC1
   cv::Mat for_spots;  // grey or the chosen channel, same size and depth
   int source_channels = 1;  // 1 (grey), 3 (BGR) or 4 (BGRA) as stored in the file
+  bool lossy_jpeg = false;  // the file is a JPEG (by its signature, not its name)
 };
 
 Result<ShotImage> ReadShotImage(const std::string& path, SpotChannel channel);

@@ -71,6 +71,28 @@ void QuietSolverLogging(const std::string& tool) {
 
 void ShowSolverLogging() { FLAGS_minloglevel = google::GLOG_INFO; }
 
+void AddImageRunOptions(CLI::App& app, ImageRunArgs* args) {
+  app.add_option("--spot-channel", args->spot_channel,
+                 "With --images, colour photographs: the channel in which laser spots are\n"
+                 "detected: red (red lasers, the default), green, blue or luma; tags are\n"
+                 "always detected in luma, grey images used as they are (docs/images.md)")
+      ->check(CLI::IsMember({"red", "green", "blue", "luma"}))
+      ->capture_default_str();
+  app.add_flag("--force", args->force,
+               "With --images: measure even when the tag corners scatter more than 3 times\n"
+               "what their covariances say (refused otherwise, exit 4: wrong intrinsics, a\n"
+               "camera that moved); the report then carries a warning");
+  app.add_flag("--verbose", args->verbose,
+               "Show the solvers' own messages (Ceres, on stderr; silenced by default) and,\n"
+               "with --images, the bundle adjustment's report on stderr");
+}
+
+void ApplyImageRunOptions(const ImageRunArgs& args, FrontEndOptions* options) {
+  const Result<SpotChannel> channel = ParseSpotChannel(args.spot_channel);
+  if (channel.ok()) options->spot_channel = *channel;  // CLI11 checked it
+  options->force = args.force;
+}
+
 int RunTool(const std::string& tool, const std::function<int()>& body) {
   QuietSolverLogging(tool);
   try {

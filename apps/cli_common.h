@@ -10,6 +10,7 @@
 #include <CLI/CLI.hpp>
 
 #include "opl/core/status.h"
+#include "opl/pipeline/image_front_end.h"
 
 namespace opl {
 namespace cli {
@@ -51,6 +52,16 @@ std::optional<int> ParseCommandLine(CLI::App& app, int argc, char** argv);
 // through.
 void QuietSolverLogging(const std::string& tool);
 void ShowSolverLogging();
+// The options opl_measure and opl_calibrate share for --images runs:
+// --spot-channel (checked by CLI11: usage error 2), --force, --verbose.
+struct ImageRunArgs {
+  std::string spot_channel = "red";
+  bool force = false;
+  bool verbose = false;
+};
+void AddImageRunOptions(CLI::App& app, ImageRunArgs* args);
+// Copies the channel and --force into the front end's options.
+void ApplyImageRunOptions(const ImageRunArgs& args, FrontEndOptions* options);
 // Runs `body` (after QuietSolverLogging), turning an escaping exception into "<tool>: internal error:
 // ..." and kExitInternalError. The library itself does not throw on bad input;
 // this is a last line of defence (e.g. std::bad_alloc).

@@ -50,9 +50,7 @@ struct Args {
   std::string scene_path;
   int threads = 0;
   bool one_pose_per_camera = false;
-  bool verbose = false;
-  std::string spot_channel = "red";
-  bool force = false;
+  opl::cli::ImageRunArgs image_run;  // --spot-channel, --force, --verbose
 };
 
 // Reads the artifact's two targets from the targets file and computes the
@@ -170,15 +168,14 @@ int RunImages(const Args& args) {
   options.calibrate.source.outlier_threshold = args.outlier_threshold;
   options.front_end.num_threads = args.threads;
   options.front_end.one_pose_per_camera = args.one_pose_per_camera;
-  options.front_end.spot_channel = *ParseSpotChannel(args.spot_channel);  // checked by CLI11
-  options.front_end.force = args.force;
+  cli::ApplyImageRunOptions(args.image_run, &options.front_end);
   cli::ProgressBar bar("images", cli::StderrIsTerminal());
   options.front_end.progress = bar.StageCallback("detect");
   Result<ImageCalibrationReport> report =
       CalibrateFromImages(*scene, args.images_dir, *nominal, options);
   bar.Finish();
   if (!report.ok()) return cli::FailInput(kTool, report.status());
-  if (args.verbose) std::cerr << report->front_end.bundle_report;
+  if (args.image_run.verbose) std::cerr << report->front_end.bundle_report;
   return WriteOutputs(args, report->calibration, report->ToText());
 }
 
@@ -227,19 +224,7 @@ int Run(int argc, char** argv) {
                  "With --images: threads for the detection and for the re-solves that\n"
                  "carry the spots' shared errors, >= 0; 0 = every core")
       ->capture_default_str();
-  app.add_option("--spot-channel", args.spot_channel,
-                 "With --images, colour photographs: the channel in which laser spots are\n"
-                 "detected: red (red lasers, the default), green, blue or luma; tags are\n"
-                 "always detected in luma, grey images used as they are (docs/images.md)")
-      ->check(CLI::IsMember({"red", "green", "blue", "luma"}))
-      ->capture_default_str();
-  app.add_flag("--force", args.force,
-               "With --images: measure even when the tag corners scatter more than 3 times\n"
-               "what their covariances say (refused otherwise, exit 4: wrong intrinsics, a\n"
-               "camera that moved); the report then carries a warning");
-  app.add_flag("--verbose", args.verbose,
-               "Show the solvers' own messages (Ceres, on stderr; silenced by default) and,\n"
-               "with --images, the bundle adjustment's report on stderr");
+  cli::AddImageRunOptions(app, &args.image_run);
   app.add_flag("--one-pose-per-camera", args.one_pose_per_camera,
                "With --images: the shots of one camera share one pose (cameras on tripods,\n"
                "untouched for the whole session); refused when a camera's shots place it\n"
@@ -305,7 +290,7 @@ int Run(int argc, char** argv) {
       "  opl_calibrate --images session/ --scene session.json --design design.json \\\n"
       "      --out module.json\n"));
   if (std::optional<int> code = cli::ParseCommandLine(app, argc, argv)) return *code;
-  if (args.verbose) cli::ShowSolverLogging();
+  if (args.image_run.verbose) cli::ShowSolverLogging();
   if (args.spots.path.empty() == args.images_dir.empty()) {
     return cli::Fail(kTool, "give either --spots or --images (with --scene) (see --help)",
                      cli::kExitUsage);

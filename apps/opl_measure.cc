@@ -32,9 +32,7 @@ struct Args {
   std::string spots_out_path;
   int threads = 0;
   bool one_pose_per_camera = false;
-  bool verbose = false;
-  std::string spot_channel = "red";
-  bool force = false;
+  opl::cli::ImageRunArgs image_run;  // --spot-channel, --force, --verbose
 };
 
 // opl_measure --images: the image front end, then the measurement.
@@ -61,15 +59,14 @@ int RunImages(const Args& args) {
   ImageMeasureOptions options;
   options.front_end.num_threads = args.threads;
   options.front_end.one_pose_per_camera = args.one_pose_per_camera;
-  options.front_end.spot_channel = *ParseSpotChannel(args.spot_channel);  // checked by CLI11
-  options.front_end.force = args.force;
+  cli::ApplyImageRunOptions(args.image_run, &options.front_end);
   cli::ProgressBar bar("images", cli::StderrIsTerminal());
   options.front_end.progress = bar.StageCallback("detect");
   Result<ImageMeasureReport> report =
       MeasureScaleFromImages(*scene, args.images_dir, *calibration, options);
   bar.Finish();
   if (!report.ok()) return cli::FailInput(kTool, report.status());
-  if (args.verbose) std::cerr << report->front_end.bundle_report;
+  if (args.image_run.verbose) std::cerr << report->front_end.bundle_report;
 
   std::string spots_csv;
   if (!args.spots_out_path.empty()) {
@@ -162,19 +159,7 @@ int Run(int argc, char** argv) {
       ->type_name("FILE");
   app.add_flag("--json", args.json,
                "Print one JSON object (format opl.measure_report) instead of the text summary");
-  app.add_option("--spot-channel", args.spot_channel,
-                 "With --images, colour photographs: the channel in which laser spots are\n"
-                 "detected: red (red lasers, the default), green, blue or luma; tags are\n"
-                 "always detected in luma, grey images used as they are (docs/images.md)")
-      ->check(CLI::IsMember({"red", "green", "blue", "luma"}))
-      ->capture_default_str();
-  app.add_flag("--force", args.force,
-               "With --images: measure even when the tag corners scatter more than 3 times\n"
-               "what their covariances say (refused otherwise, exit 4: wrong intrinsics, a\n"
-               "camera that moved); the report then carries a warning");
-  app.add_flag("--verbose", args.verbose,
-               "Show the solvers' own messages (Ceres, on stderr; silenced by default) and,\n"
-               "with --images, the bundle adjustment's report on stderr");
+  cli::AddImageRunOptions(app, &args.image_run);
   CLI::Option* apply =
       app.add_option("--apply", args.apply_path,
                      "Points CSV with x,y,z columns to scale by s (other columns copied verbatim)")
@@ -192,7 +177,7 @@ int Run(int argc, char** argv) {
       "      --skip-rows 1 --identified sorted.csv\n"
       "  opl_measure --calibration cal.json --images shots/ --scene scene.json\n"));
   if (std::optional<int> code = opl::cli::ParseCommandLine(app, argc, argv)) return *code;
-  if (args.verbose) cli::ShowSolverLogging();
+  if (args.image_run.verbose) cli::ShowSolverLogging();
   if (args.spots.path.empty() == args.images_dir.empty()) {
     return cli::Fail(kTool, "give either --spots or --images (with --scene) (see --help)",
                      cli::kExitUsage);

@@ -13,8 +13,6 @@
 #include <thread>
 
 #include <Eigen/Eigenvalues>
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
 
 #include "core/parallel_for.h"
 #include "opl/core/format.h"

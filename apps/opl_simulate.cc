@@ -39,6 +39,7 @@
 #include "opl/io/module_design_json.h"
 #include "opl/io/scene_json.h"
 #include "opl/lab/render_scene.h"
+#include "opl/lab/shot_file.h"
 #include "opl/io/spots_csv.h"
 #include "opl/sim/module_design.h"
 #include "opl/sim/simulate_slices.h"
@@ -471,19 +472,13 @@ int ImagesCommand(const Args& args) {
                                                          "]: " + r.status().message());
       bool is_write = false;
       if (st.ok()) {
-        std::vector<unsigned char> png;
-        bool encoded = false;
-        try {
-          encoded = cv::imencode(".png", r->image, png);
-        } catch (const cv::Exception& e) {
-          encoded = false;
-        }
+        Result<std::string> file = EncodeShotImage(r->image, scene->image);
         r->image.release();
-        if (!encoded) {
-          st = Status::IoError(path + ": cannot encode the PNG");
+        if (!file.ok()) {
+          st = Status::IoError(path + ": " + file.status().message());
           is_write = true;
         } else {
-          st = WriteFileAtomically(path, std::string(png.begin(), png.end()));
+          st = WriteFileAtomically(path, *file);
           is_write = !st.ok();
         }
       }

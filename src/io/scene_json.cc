@@ -23,6 +23,17 @@ constexpr int kVersion = 1;
 
 class SceneReader : public json_internal::JsonReader {
  public:
+  Status OptionalBool(const json& obj, const std::string& path, const std::string& key,
+                      bool* out) const {
+    const json* v = Find(obj, key);
+    if (v == nullptr) return Status::Ok();
+    if (!v->is_boolean()) {
+      return Error(Join(path, key), "expected true or false, got " + Describe(*v));
+    }
+    *out = v->get<bool>();
+    return Status::Ok();
+  }
+
   SceneReader(std::string name, std::string base_dir)
       : JsonReader(std::move(name)), base_dir_(std::move(base_dir)) {}
 
@@ -94,7 +105,10 @@ class SceneReader : public json_internal::JsonReader {
       OPL_RETURN_IF_ERROR(CheckKeys(*i, "image",
                                     {"bit_depth", "background_level", "black_level", "white_level",
                                      "blur_sigma_px", "read_noise", "gain_e_per_dn",
-                                     "subpixels_per_axis"}));
+                                     "subpixels_per_axis", "color", "laser_response_rgb", "bayer",
+                                     "wall_texture", "wall_texture_contrast", "ambient_gradient",
+                                     "ambient_angle_deg", "vignetting", "defocus_sigma_px",
+                                     "distractors", "format", "jpeg_quality", "exif_orientation"}));
       ImageLook& l = scene->image;
       OPL_RETURN_IF_ERROR(OptionalInteger(*i, "image", "bit_depth", &l.bit_depth));
       OPL_RETURN_IF_ERROR(OptionalNumber(*i, "image", "background_level", &l.background_level));
@@ -105,6 +119,32 @@ class SceneReader : public json_internal::JsonReader {
       OPL_RETURN_IF_ERROR(OptionalNumber(*i, "image", "gain_e_per_dn", &l.gain_e_per_dn));
       OPL_RETURN_IF_ERROR(
           OptionalInteger(*i, "image", "subpixels_per_axis", &l.subpixels_per_axis));
+      OPL_RETURN_IF_ERROR(OptionalBool(*i, "image", "color", &l.color));
+      OPL_RETURN_IF_ERROR(OptionalBool(*i, "image", "bayer", &l.bayer));
+      if (const json* r = Find(*i, "laser_response_rgb")) {
+        Eigen::Vector3d rgb;
+        OPL_RETURN_IF_ERROR(Vec3(*r, "image.laser_response_rgb", &rgb));
+        l.laser_response_rgb = {rgb.x(), rgb.y(), rgb.z()};
+      }
+      if (const json* t = Find(*i, "wall_texture")) {
+        OPL_RETURN_IF_ERROR(String(*t, "image.wall_texture", &l.wall_texture));
+        if (l.wall_texture.empty()) return Error("image.wall_texture", "must not be empty");
+        std::filesystem::path p(l.wall_texture);
+        if (p.is_relative() && !base_dir_.empty()) p = std::filesystem::path(base_dir_) / p;
+        l.wall_texture = p.string();
+      }
+      OPL_RETURN_IF_ERROR(
+          OptionalNumber(*i, "image", "wall_texture_contrast", &l.wall_texture_contrast));
+      OPL_RETURN_IF_ERROR(OptionalNumber(*i, "image", "ambient_gradient", &l.ambient_gradient));
+      OPL_RETURN_IF_ERROR(OptionalNumber(*i, "image", "ambient_angle_deg", &l.ambient_angle_deg));
+      OPL_RETURN_IF_ERROR(OptionalNumber(*i, "image", "vignetting", &l.vignetting));
+      OPL_RETURN_IF_ERROR(OptionalNumber(*i, "image", "defocus_sigma_px", &l.defocus_sigma_px));
+      OPL_RETURN_IF_ERROR(OptionalInteger(*i, "image", "distractors", &l.distractors));
+      if (const json* f = Find(*i, "format")) {
+        OPL_RETURN_IF_ERROR(String(*f, "image.format", &l.format));
+      }
+      OPL_RETURN_IF_ERROR(OptionalInteger(*i, "image", "jpeg_quality", &l.jpeg_quality));
+      OPL_RETURN_IF_ERROR(OptionalInteger(*i, "image", "exif_orientation", &l.exif_orientation));
     }
     if (const json* s = Find(root, "seed")) {
       if (!s->is_number_unsigned()) {
@@ -383,13 +423,26 @@ std::string FormatSceneTruthJson(const SceneRenderer& renderer,
       }
       spot_views.push_back(view);
     }
-    shot_list.push_back({{"index", r.shot_index},
-                         {"file", shot.file},
-                         {"camera", shot.camera},
-                         {"lasers", shot.lasers},
-                         {"slice", shot.slice},
-                         {"tags", tag_views},
-                         {"spots", spot_views}});
+    ojson shot_json = {{"index", r.shot_index},
+                       {"file", shot.file},
+                       {"camera", shot.camera},
+                       {"lasers", shot.lasers},
+                       {"slice", shot.slice},
+                       {"tags", tag_views},
+                       {"spots", spot_views}};
+    if (!r.distractors.empty()) {
+      ojson distractors = ojson::array();
+      for (const Distractor& d : r.distractors) {
+        distractors.push_back(
+            {{"kind", DistractorKindName(d.kind)},
+             {"center_px", vec(d.center_px)},
+             {"shape_px2", ojson::array({d.shape_covariance_px2(0, 0), d.shape_covariance_px2(0, 1),
+                                         d.shape_covariance_px2(1, 1)})},
+             {"peak_fraction", d.peak_fraction}});
+      }
+      shot_json["distractors"] = distractors;
+    }
+    shot_list.push_back(shot_json);
   }
   root["shots"] = shot_list;
   return root.dump(1) + "\n";

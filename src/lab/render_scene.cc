@@ -8,6 +8,7 @@
 #include <variant>
 
 #include "opl/lab/planar_target_image.h"
+#include "opl/lab/scene_look.h"
 #include "opl/lab/spot_image.h"
 #include "opl/model/beam_pattern.h"
 #include "opl/sim/random.h"
@@ -107,6 +108,20 @@ Result<SceneRenderer> SceneRenderer::Create(const Scene& scene) {
       }
     }
   }
+  if (!scene.image.wall_texture.empty()) {
+    Result<cv::Mat> texture = ReadWallTexture(scene.image.wall_texture);
+    if (!texture.ok()) {
+      return Status(texture.status().code(), "image.wall_texture: " + texture.status().message());
+    }
+    r.wall_texture_ = std::move(*texture);
+  }
+  // Distractors belong to the room as each camera sees it: seeded by the
+  // scene and the camera, the same in every shot of that camera.
+  for (size_t k = 0; k < scene.cameras.size(); ++k) {
+    const CameraIntrinsics& in = scene.cameras[k].intrinsics;
+    r.distractors_.push_back(MakeDistractors(scene.image.distractors, in.width_px, in.height_px,
+                                             scene.seed ^ (0xA24BAED4963EE407ull * (k + 1))));
+  }
   return r;
 }
 
@@ -167,12 +182,18 @@ Result<RenderedShot> SceneRenderer::RenderShot(int shot_index) const {
   if (!tag_image.ok()) return tag_image.status();
 
   // 2. Spots.
+  const bool scene_look = look.HasSceneLook();
   SpotImageOptions spot_options;
   spot_options.width_px = camera.intrinsics.width_px;
   spot_options.height_px = camera.intrinsics.height_px;
   spot_options.bit_depth = look.bit_depth;
   const double full_scale = SpotImageFullScale(spot_options);
-  tag_image->levels.convertTo(spot_options.background_image_dn, CV_32FC1, full_scale);
+  SceneImageLayers layers;
+  if (scene_look) {
+    layers.tag_levels = std::move(tag_image->levels);
+  } else {
+    tag_image->levels.convertTo(spot_options.background_image_dn, CV_32FC1, full_scale);
+  }
   tag_image->levels.release();
   tag_image->image.release();
   spot_options.speckle_contrast = scene_.spots.speckle_contrast;
@@ -202,6 +223,8 @@ Result<RenderedShot> SceneRenderer::RenderShot(int shot_index) const {
       const Eigen::Matrix3d S = sigma_mm * sigma_mm * (Eigen::Matrix3d::Identity() - n * n.transpose());
       Eigen::Matrix2d C = J * S * J.transpose();
       C = 0.5 * (C + C.transpose());
+      // Defocus widens the spot's Gaussian exactly (lab/scene_look.h, step 4).
+      C += look.defocus_sigma_px * look.defocus_sigma_px * Eigen::Matrix2d::Identity();
       const double smin = std::sqrt(std::min(C(0, 0), C(1, 1)));
       const double smax = std::sqrt(std::max(C(0, 0), C(1, 1)));
       // RenderSpotImage's domain; a spot seen so edge-on that it leaves it is
@@ -226,6 +249,33 @@ Result<RenderedShot> SceneRenderer::RenderShot(int shot_index) const {
   }
 
   // 3. Sensor.
+  if (scene_look) {
+    // The laser light alone, then the room, lens and sensor around it.
+    SpotImageOptions light = spot_options;
+    light.background_dn = 0.0;
+    light.gain_e_per_dn = 0.0;
+    light.read_noise_dn = 0.0;
+    light.keep_clean = true;
+    Result<SpotImage> spot_light = RenderSpotImage(to_render, light);
+    if (!spot_light.ok()) return spot_light.status();
+    spot_light->image.release();
+    layers.spot_light = spot_light->clean_dn / full_scale;
+    spot_light->clean_dn.release();
+    layers.wall_texture = wall_texture_;
+    layers.distractors = distractors_[static_cast<size_t>(scene_.FindCamera(shot.camera) -
+                                                          scene_.cameras.data())];
+    out.distractors = layers.distractors;
+    Result<SceneImage> image = ComposeSceneImage(layers, look, camera.intrinsics,
+                                                 SplitMix64(spot_options.seed).Next() ^ 0x5EEDull);
+    if (!image.ok()) return image.status();
+    for (size_t k = 0; k < view_of_rendered.size(); ++k) {
+      const cv::Rect& window = spot_light->spots[k].window;
+      out.spots[view_of_rendered[k]].saturated_pixels =
+          window.area() > 0 ? cv::countNonZero(image->saturated_mask(window)) : 0;
+    }
+    out.image = std::move(image->image);
+    return out;
+  }
   Result<SpotImage> image = RenderSpotImage(to_render, spot_options);
   if (!image.ok()) return image.status();
   for (size_t k = 0; k < view_of_rendered.size(); ++k) {

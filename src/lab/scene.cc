@@ -62,6 +62,47 @@ Status CheckLooks(const SpotLook& spots, const ImageLook& image) {
   if (image.subpixels_per_axis < 1 || image.subpixels_per_axis > 8) {
     return BadNumber("image.subpixels_per_axis", image.subpixels_per_axis, "must be in [1, 8]");
   }
+  for (int c = 0; c < 3; ++c) {
+    const double r = image.laser_response_rgb[static_cast<size_t>(c)];
+    if (!(r >= 0.0 && r <= 1.0)) {
+      return BadNumber("image.laser_response_rgb[" + std::to_string(c) + "]", r, "must be in [0, 1]");
+    }
+  }
+  if (image.bayer && !image.color) return Bad("image.bayer", "needs \"color\": true");
+  if (!(image.wall_texture_contrast >= 0.0 && image.wall_texture_contrast <= 1.0)) {
+    return BadNumber("image.wall_texture_contrast", image.wall_texture_contrast, "must be in [0, 1]");
+  }
+  if (!(image.ambient_gradient >= 0.0 && image.ambient_gradient <= 1.0)) {
+    return BadNumber("image.ambient_gradient", image.ambient_gradient, "must be in [0, 1]");
+  }
+  if (!Finite(image.ambient_angle_deg)) {
+    return BadNumber("image.ambient_angle_deg", image.ambient_angle_deg, "must be finite");
+  }
+  if (!(image.vignetting >= 0.0 && image.vignetting <= 0.9)) {
+    return BadNumber("image.vignetting", image.vignetting, "must be in [0, 0.9]");
+  }
+  if (!(image.defocus_sigma_px >= 0.0 && image.defocus_sigma_px <= 10.0)) {
+    return BadNumber("image.defocus_sigma_px", image.defocus_sigma_px, "must be in [0, 10]");
+  }
+  if (image.distractors < 0 || image.distractors > 1000) {
+    return BadNumber("image.distractors", image.distractors, "must be in [0, 1000]");
+  }
+  if (image.format != "png" && image.format != "jpeg") {
+    return Bad("image.format", "'" + image.format + "': must be \"png\" or \"jpeg\"");
+  }
+  if (image.format == "jpeg" && image.bit_depth != 8) {
+    return Bad("image.format", "\"jpeg\" needs \"bit_depth\": 8");
+  }
+  if (image.jpeg_quality < 1 || image.jpeg_quality > 100) {
+    return BadNumber("image.jpeg_quality", image.jpeg_quality, "must be in [1, 100]");
+  }
+  if (image.exif_orientation < 0 || image.exif_orientation > 8) {
+    return BadNumber("image.exif_orientation", image.exif_orientation,
+                     "must be 0 (none) or an EXIF orientation 1..8");
+  }
+  if (image.exif_orientation != 0 && image.format != "jpeg") {
+    return Bad("image.exif_orientation", "only with \"format\": \"jpeg\"");
+  }
   return Status::Ok();
 }
 

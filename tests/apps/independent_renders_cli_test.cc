@@ -24,6 +24,7 @@
 #include <nlohmann/json.hpp>
 
 #include "cli_test_util.h"
+#include "opl/lab/shot_file.h"
 
 namespace opl {
 namespace {
@@ -130,19 +131,12 @@ TEST(IndependentRendersExif, OrientationTagIsNotApplied) {
   testing_support::TempDir tmp;
   std::ifstream in(dir + "/scene.json");
   const nlohmann::json scene = nlohmann::json::parse(in);
-  // An APP1 EXIF segment whose only entry is Orientation (0x0112) = 6.
-  const std::string app1("\xFF\xE1\x00\x22"
-                         "Exif\0\0"
-                         "II*\0\x08\0\0\0"
-                         "\x01\0"
-                         "\x12\x01\x03\0\x01\0\0\0\x06\0\0\0"
-                         "\0\0\0\0",
-                         36);
   for (const auto& shot : scene["shots"]) {
     const std::string file = shot["file"].get<std::string>();
     const std::string jpeg = testing_support::ReadAll(dir + "/" + file);
-    ASSERT_EQ(jpeg.substr(0, 2), "\xFF\xD8");
-    tmp.Write(file, jpeg.substr(0, 2) + app1 + jpeg.substr(2));
+    Result<std::string> tagged = InsertExifOrientation(jpeg, 6);  // 90 deg
+    ASSERT_TRUE(tagged.ok()) << file << ": " << tagged.status().message();
+    tmp.Write(file, *tagged);
   }
   const std::string args = "--calibration " + dir + "/calibration.json --scene " + dir +
                            "/scene.json --json --threads 2 --images ";

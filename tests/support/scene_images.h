@@ -10,10 +10,11 @@
 #include <vector>
 
 #include <gtest/gtest.h>
-#include <opencv2/imgcodecs.hpp>
 
 #include "opl/core/status.h"
+#include "opl/io/atomic_file.h"
 #include "opl/lab/render_scene.h"
+#include "opl/lab/shot_file.h"
 
 namespace opl::test {
 
@@ -46,8 +47,11 @@ inline Result<SceneRenderer> RenderShotsTo(const Scene& scene, const std::filesy
       Result<RenderedShot> shot = renderer->RenderShot(static_cast<int>(i));
       if (!shot.ok()) {
         errors[i] = shot.status();
-      } else if (!cv::imwrite((dir / scene.shots[i].file).string(), shot->image)) {
-        errors[i] = Status::IoError((dir / scene.shots[i].file).string() + ": cannot write");
+      } else {
+        // Written as `opl_simulate images` writes it (format, quality, EXIF).
+        const std::string path = (dir / scene.shots[i].file).string();
+        Result<std::string> file = EncodeShotImage(shot->image, scene.image);
+        errors[i] = file.ok() ? WriteFileAtomically(path, *file) : file.status();
       }
     }
   };

@@ -12,35 +12,18 @@
 #include <opencv2/imgproc.hpp>
 
 #include "io/temp_dir.h"
+#include "opl/lab/shot_file.h"
 #include "opl/vision/spot_detection.h"
 
 namespace opl {
 namespace {
 
 // A JPEG of `image` carrying an EXIF APP1 segment whose only entry is
-// Orientation (0x0112) = `orientation` (little-endian TIFF).
+// Orientation (0x0112) = `orientation` (lab/shot_file.h).
 std::string JpegWithExifOrientation(const cv::Mat& image, int orientation) {
   std::vector<uchar> jpeg;
   cv::imencode(".jpg", image, jpeg, {cv::IMWRITE_JPEG_QUALITY, 95});
-  const std::vector<uchar> tiff = {
-      'I', 'I', 42, 0, 8, 0, 0, 0,                    // header, IFD at 8
-      1, 0,                                            // one entry
-      0x12, 0x01, 3, 0, 1, 0, 0, 0,                    // Orientation, SHORT, count 1
-      static_cast<uchar>(orientation), 0, 0, 0,        // value
-      0, 0, 0, 0};                                     // no next IFD
-  std::vector<uchar> app1 = {'E', 'x', 'i', 'f', 0, 0};
-  app1.insert(app1.end(), tiff.begin(), tiff.end());
-  const size_t length = app1.size() + 2;
-  std::string out;
-  out.push_back(static_cast<char>(0xFF));
-  out.push_back(static_cast<char>(0xD8));
-  out.push_back(static_cast<char>(0xFF));
-  out.push_back(static_cast<char>(0xE1));
-  out.push_back(static_cast<char>(length >> 8));
-  out.push_back(static_cast<char>(length & 0xFF));
-  out.append(app1.begin(), app1.end());
-  out.append(jpeg.begin() + 2, jpeg.end());  // after the encoder's SOI
-  return out;
+  return *InsertExifOrientation(std::string(jpeg.begin(), jpeg.end()), orientation);
 }
 
 TEST(ShotImage, ExifOrientationIsNotApplied) {

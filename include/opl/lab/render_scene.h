@@ -33,7 +33,9 @@
 //     J = d pixel / d point at the spot, by central differences), so oblique
 //     spots are elliptical, centred on the projected point, peak
 //     spots.peak_fraction of full scale, with speckle as RenderSpotImage.
-//  3. Sensor. The spots are added to the tag image (RenderSpotImage with the
+//  3. Sensor (a scene with any field of the harder lab set, ImageLook::
+//     HasSceneLook, composes the tags, the spots' light and the room as
+//     lab/scene_look.h says instead). The spots are added to the tag image (RenderSpotImage with the
 //     tag image as background) and noise applied once: shot noise
 //     (image.gain_e_per_dn) and read noise (image.read_noise of full scale),
 //     rounding and clipping to image.bit_depth. Seeds derive from scene.seed
@@ -54,6 +56,7 @@
 
 #include "opl/core/status.h"
 #include "opl/lab/scene.h"
+#include "opl/lab/scene_look.h"
 
 namespace opl {
 
@@ -102,6 +105,8 @@ struct RenderedShot {
   cv::Mat image;                // CV_8UC1 or CV_16UC1 (image.bit_depth), the camera's size
   std::vector<TagView> tags;    // every tag of the scene, scene order
   std::vector<SpotView> spots;  // every hit of the lit sources on the shot's slice
+  // The camera's distractors (image.distractors; lab/scene_look.h), drawn.
+  std::vector<Distractor> distractors;
 };
 
 // Renders the shots of a scene. Create() validates the scene for rendering,
@@ -127,6 +132,8 @@ class SceneRenderer {
   Scene scene_;
   std::vector<SceneTagTruth> tags_;
   std::vector<SceneSpotTruth> spots_;
+  cv::Mat wall_texture_;  // image.wall_texture, read once (shared, read-only)
+  std::vector<std::vector<Distractor>> distractors_;  // per camera, scene order
 };
 
 // Convenience: SceneRenderer::Create(scene) then RenderShot(shot_index).

@@ -21,6 +21,7 @@
 // z along the optical axis).
 #pragma once
 
+#include <array>
 #include <optional>
 #include <string>
 #include <vector>
@@ -96,6 +97,58 @@ struct ImageLook {
   double read_noise = 0.0;         // Gaussian read noise, fraction of full scale
   double gain_e_per_dn = 0.0;      // shot noise (0: off), electrons per DN
   int subpixels_per_axis = 2;      // tag rendering supersampling, 1..8
+
+  // The harder lab (lab/scene_look.h; docs/formats.md, "Scene JSON"): every
+  // field optional; the defaults render the plain grey lab above exactly.
+  //
+  // Colour sensor: images are RGB (written BGR, as OpenCV does). Tags and an
+  // untextured wall are grey; the laser is seen through the camera's
+  // response to its wavelength, relative per channel (red, green, blue),
+  // each in [0, 1]; the default is a 658 nm diode seen by a typical RGB
+  // sensor: mostly red.
+  bool color = false;
+  std::array<double, 3> laser_response_rgb = {1.0, 0.10, 0.03};
+  // Bayer: the colour image is sampled on an RGGB mosaic, the noise applied
+  // to the mosaic, and the image demosaiced again (OpenCV's bilinear), as a
+  // camera's JPEG is made. Needs `color`.
+  bool bayer = false;
+  // Wall texture: a photograph (path; relative to the scene JSON's folder)
+  // scaled to cover each image, as the wall behind and between the tags.
+  // Its mean level is background_level; `wall_texture_contrast` in [0, 1]
+  // scales its variation (1: the photograph's own contrast).
+  std::string wall_texture;
+  double wall_texture_contrast = 1.0;
+  // Ambient light: a linear ramp of this amplitude (fraction of full scale,
+  // from -a/2 to +a/2 across the image) at `ambient_angle_deg` from +u
+  // towards +v, on everything but the spots.
+  double ambient_gradient = 0.0;
+  double ambient_angle_deg = 0.0;
+  // Vignetting: the light falls to 1 - vignetting at the image corners
+  // (1 - v (r / r_corner)^2, r from the principal point), in [0, 0.9].
+  double vignetting = 0.0;
+  // Defocus of the whole image: a Gaussian PSF of this sigma, px, in
+  // [0, 10] (the spots' shape covariance grows by sigma^2 I; the tags' PSF
+  // combines with blur_sigma_px).
+  double defocus_sigma_px = 0.0;
+  // Bright distractors per camera, in [0, 1000]: specular highlights,
+  // small lamps and retro-reflective dots at seeded places of the image.
+  // They belong to the room: every shot of a camera shows the same ones,
+  // lasers on or off. Their places are in the truth JSON.
+  int distractors = 0;
+  // File format: "png" (lossless, 8 or 16 bit) or "jpeg" (8 bit) at
+  // `jpeg_quality` in [1, 100], optionally carrying an EXIF Orientation
+  // tag (0: none, else 1..8) that OPL ignores (vision/shot_image.h) and most
+  // viewers apply.
+  std::string format = "png";
+  int jpeg_quality = 95;
+  int exif_orientation = 0;
+
+  // True when a field of the harder lab departs from the plain grey lab
+  // (file format aside).
+  bool HasSceneLook() const {
+    return color || bayer || !wall_texture.empty() || ambient_gradient != 0.0 ||
+           vignetting != 0.0 || defocus_sigma_px != 0.0 || distractors != 0;
+  }
 };
 
 struct SceneShot {

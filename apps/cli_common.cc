@@ -78,6 +78,11 @@ void AddImageRunOptions(CLI::App& app, ImageRunArgs* args) {
                  "always detected in luma, grey images used as they are (docs/images.md)")
       ->check(CLI::IsMember({"red", "green", "blue", "luma"}))
       ->capture_default_str();
+  app.add_flag("--no-dark-frames", args->no_dark_frames,
+               "With --images: do not subtract laser-off shots (\"lasers\": [] in the scene)\n"
+               "from the lit shots of the same camera before detecting spots (they are\n"
+               "subtracted by default when the tags show the camera did not move;\n"
+               "docs/images.md, 'Laser-off frames')");
   app.add_flag("--force", args->force,
                "With --images: measure even when the tag corners scatter more than 3 times\n"
                "what their covariances say (refused otherwise, exit 4: wrong intrinsics, a\n"
@@ -91,6 +96,7 @@ void ApplyImageRunOptions(const ImageRunArgs& args, FrontEndOptions* options) {
   const Result<SpotChannel> channel = ParseSpotChannel(args.spot_channel);
   if (channel.ok()) options->spot_channel = *channel;  // CLI11 checked it
   options->force = args.force;
+  options->use_dark_frames = !args.no_dark_frames;
 }
 
 int RunTool(const std::string& tool, const std::function<int()>& body) {

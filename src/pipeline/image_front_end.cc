@@ -5,6 +5,7 @@
 #include <atomic>
 #include <cmath>
 #include <filesystem>
+#include <limits>
 #include <map>
 #include <mutex>
 #include <optional>
@@ -17,6 +18,7 @@
 #include "core/parallel_for.h"
 #include "opl/core/format.h"
 #include "opl/geometry/rotation.h"
+#include "opl/vision/dark_frame.h"
 #include "opl/vision/scene_frame.h"
 #include "opl/vision/tag_poses.h"
 
@@ -29,6 +31,9 @@ struct ImageData {
   int blobs_rejected = 0;  // FrontEndOptions' spot gates
   int spots_saturated = 0;
   bool lossy_jpeg = false;
+  std::vector<Eigen::Vector2d> rejected_blobs_px;
+  int dark_frame = -1;  // laser-off shot subtracted, or -1
+  std::vector<std::pair<int, double>> dark_candidates;  // (laser-off shot, tag shift px)
 };
 
 // The spot gates of FrontEndOptions (min_spot_snr, max_spot_center_sigma_px).
@@ -157,6 +162,10 @@ Status FrontEndOptions::Validate() const {
     return Status::InvalidArgument("max_spot_center_sigma_px must be finite and > 0, got " +
                                    FormatNumber(max_spot_center_sigma_px));
   }
+  if (!(std::isfinite(max_dark_frame_shift_px) && max_dark_frame_shift_px > 0.0)) {
+    return Status::InvalidArgument("max_dark_frame_shift_px must be finite and > 0, got " +
+                                   FormatNumber(max_dark_frame_shift_px));
+  }
   if (num_threads < 0) {
     return Status::InvalidArgument("num_threads must be >= 0, got " +
                                    std::to_string(num_threads));
@@ -176,9 +185,14 @@ std::string FrontEndResult::ToText() const {
   std::ostringstream out;
   out << "images:\n";
   for (const ImageFindings& f : images) {
-    out << "  " << f.file << " (" << f.camera << "): " << f.tag_ids.size() << " tags, "
-        << f.spots_detected << " spots (" << f.blobs_rejected << " other blobs), "
-        << f.spots_matched << " matched";
+    out << "  " << f.file << " (" << f.camera << "): " << f.tag_ids.size() << " tags, ";
+    if (f.laser_off) {
+      out << "lasers off";
+    } else {
+      out << f.spots_detected << " spots (" << f.blobs_rejected << " other blobs), "
+          << f.spots_matched << " matched";
+      if (!f.dark_frame.empty()) out << ", minus " << f.dark_frame;
+    }
     if (f.placed) {
       out << ", RMS tags " << FormatNumber(f.tag_rms_px, 3) << " px, spots "
           << FormatNumber(f.spot_rms_px, 3) << " px";
@@ -315,6 +329,7 @@ void FrontEndRun::Init() {
 
 Status FrontEndRun::Detect() {
   // 1-2. Read and detect, in parallel; the first error (in shot order) wins.
+  // Laser-off shots first: their images are the lit shots' dark frames.
   data.assign(static_cast<size_t>(num_images), ImageData());
   std::vector<Status> errors(static_cast<size_t>(num_images));
   std::mutex progress_mutex;
@@ -322,29 +337,85 @@ Status FrontEndRun::Detect() {
   threads = options.num_threads > 0
                 ? options.num_threads
                 : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  internal::ParallelFor(num_images, threads, [&](int i) {
+  std::vector<int> dark_shots, lit_shots;
+  for (int i = 0; i < num_images; ++i) {
+    (scene.shots[static_cast<size_t>(i)].lasers.empty() ? dark_shots : lit_shots).push_back(i);
+  }
+  if (lit_shots.empty()) {
+    return Status::InvalidArgument("every one of the " + std::to_string(num_images) +
+                                   " shots has \"lasers\": [] (laser off): no shot shows a laser");
+  }
+  std::vector<cv::Mat> dark_images(static_cast<size_t>(num_images));
+  const auto read_and_find_tags = [&](int i) -> Result<ShotImage> {
     const SceneShot& shot = scene.shots[static_cast<size_t>(i)];
     const std::string path = (std::filesystem::path(images_dir) / shot.file).string();
-    Status& error = errors[static_cast<size_t>(i)];
     Result<ShotImage> image = ReadAndCheckShotImage(path, intrinsics[static_cast<size_t>(i)],
                                                     shot.camera, shot.file, options.spot_channel);
+    if (!image.ok()) return image.status();
+    Result<std::vector<TagDetection>> tags = DetectTags(image->for_tags, options.tags);
+    if (!tags.ok()) return Status(tags.status().code(), shot.file + ": " + tags.status().message());
+    ImageData& d = data[static_cast<size_t>(i)];
+    d.tags = std::move(*tags);
+    d.lossy_jpeg = image->lossy_jpeg;
+    return image;
+  };
+  internal::ParallelFor(static_cast<int>(dark_shots.size()), threads, [&](int k) {
+    const int i = dark_shots[static_cast<size_t>(k)];
+    Result<ShotImage> image = read_and_find_tags(i);
+    if (!image.ok()) {
+      errors[static_cast<size_t>(i)] = image.status();
+      return;
+    }
+    if (options.use_dark_frames) dark_images[static_cast<size_t>(i)] = std::move(image->for_spots);
+    std::lock_guard<std::mutex> lock(progress_mutex);
+    Progress("detect", ++done, num_images);
+  });
+  for (const Status& e : errors) OPL_RETURN_IF_ERROR(e);
+  internal::ParallelFor(static_cast<int>(lit_shots.size()), threads, [&](int k) {
+    const int i = lit_shots[static_cast<size_t>(k)];
+    const SceneShot& shot = scene.shots[static_cast<size_t>(i)];
+    Status& error = errors[static_cast<size_t>(i)];
+    Result<ShotImage> image = read_and_find_tags(i);
     if (!image.ok()) {
       error = image.status();
       return;
     }
-    Result<std::vector<TagDetection>> tags = DetectTags(image->for_tags, options.tags);
-    if (!tags.ok()) {
-      error = Status(tags.status().code(), shot.file + ": " + tags.status().message());
-      return;
+    ImageData& d = data[static_cast<size_t>(i)];
+    // The laser-off shot of this camera whose tags moved least.
+    int dark = -1;
+    double best_shift = std::numeric_limits<double>::infinity();
+    for (int j : dark_shots) {
+      if (dark_images[static_cast<size_t>(j)].empty() ||
+          scene.shots[static_cast<size_t>(j)].camera != shot.camera) {
+        continue;
+      }
+      const double shift = TagShiftPx(d.tags, data[static_cast<size_t>(j)].tags, nullptr);
+      d.dark_candidates.push_back({j, shift});
+      if (shift < best_shift) {
+        best_shift = shift;
+        dark = j;
+      }
     }
-    Result<SpotDetectionResult> spots = DetectSpots(image->for_spots, options.spots);
+    cv::Mat for_spots = image->for_spots;
+    SpotDetectionOptions spot_options = options.spots;
+    if (dark >= 0 && best_shift <= options.max_dark_frame_shift_px) {
+      Result<cv::Mat> difference = SubtractDarkFrame(
+          image->for_spots, dark_images[static_cast<size_t>(dark)], options.spots.saturation_dn);
+      if (!difference.ok()) {
+        error = Status(difference.status().code(),
+                       shot.file + " minus " + scene.shots[static_cast<size_t>(dark)].file + ": " +
+                           difference.status().message());
+        return;
+      }
+      for_spots = std::move(*difference);
+      spot_options.saturation_dn = 0.0;  // SubtractDarkFrame marks saturation at 65535
+      d.dark_frame = dark;
+    }
+    Result<SpotDetectionResult> spots = DetectSpots(for_spots, spot_options);
     if (!spots.ok()) {
       error = Status(spots.status().code(), shot.file + ": " + spots.status().message());
       return;
     }
-    ImageData& d = data[static_cast<size_t>(i)];
-    d.tags = std::move(*tags);
-    d.lossy_jpeg = image->lossy_jpeg;
     for (const DetectedSpot& s : spots->spots) {
       bool in_tag = false;
       for (const TagDetection& t : d.tags) {
@@ -356,6 +427,7 @@ Status FrontEndRun::Detect() {
         d.spots_saturated += s.has(kSpotSaturated) ? 1 : 0;
       } else {
         ++d.blobs_rejected;
+        d.rejected_blobs_px.emplace_back(s.u_px, s.v_px);
       }
     }
     std::lock_guard<std::mutex> lock(progress_mutex);
@@ -370,6 +442,22 @@ Status FrontEndRun::Detect() {
     f.blobs_rejected = data[static_cast<size_t>(i)].blobs_rejected;
     f.spots_saturated = data[static_cast<size_t>(i)].spots_saturated;
     f.lossy_jpeg = data[static_cast<size_t>(i)].lossy_jpeg;
+    f.laser_off = scene.shots[static_cast<size_t>(i)].lasers.empty();
+    f.spots = data[static_cast<size_t>(i)].spots;
+    f.rejected_blobs_px = data[static_cast<size_t>(i)].rejected_blobs_px;
+    const ImageData& d = data[static_cast<size_t>(i)];
+    if (d.dark_frame >= 0) {
+      f.dark_frame = scene.shots[static_cast<size_t>(d.dark_frame)].file;
+    } else if (!d.dark_candidates.empty()) {
+      std::string moved;
+      for (const auto& [j, shift] : d.dark_candidates) {
+        moved += (moved.empty() ? "" : ", ") + scene.shots[static_cast<size_t>(j)].file + " " +
+                 (std::isfinite(shift) ? FormatNumber(shift, 3) + " px" : "no common tag");
+      }
+      f.notes.push_back("laser-off shot of the same camera not subtracted: its tags moved (" +
+                        moved + "; at most " + FormatNumber(options.max_dark_frame_shift_px) +
+                        " px)");
+    }
     if (f.tag_ids.empty()) f.notes.push_back("no tag found");
     images_with_tags += f.tag_ids.empty() ? 0 : 1;
   }
@@ -694,6 +782,7 @@ void FrontEndRun::GroupShots() {
     std::map<std::pair<std::vector<std::string>, int>, int> group_of_key;
     for (int i = 0; i < num_images; ++i) {
       const SceneShot& shot = scene.shots[static_cast<size_t>(i)];
+      if (shot.lasers.empty()) continue;  // a laser-off shot: tags and dark frame only
       std::vector<std::string> lasers = shot.lasers;
       std::sort(lasers.begin(), lasers.end());
       const auto key = std::make_pair(lasers, shot.slice);

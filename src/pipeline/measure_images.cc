@@ -55,6 +55,8 @@ std::string ImageMeasureReport::ToJson() const {
                       {"spot_model_rms_px", f.spot_model_rms_px},
                       {"spots_saturated", f.spots_saturated},
                       {"lossy_jpeg", f.lossy_jpeg},
+                      {"laser_off", f.laser_off},
+                      {"dark_frame", f.dark_frame.empty() ? ordered_json(nullptr) : ordered_json(f.dark_frame)},
                       {"notes", f.notes}});
   }
   doc["images"] = images;

@@ -15,7 +15,10 @@
 //  2. Detection, per image, in parallel: coded targets (DetectTags,
 //     vision/tag_detection.h) and laser spots (DetectSpots, vision/
 //     spot_detection.h). Spots inside a detected tag's quad are dropped (its
-//     white cells are not lasers).
+//     white cells are not lasers). Laser-off shots ("lasers": []) are read
+//     first: their tags are used, and their images are the dark frames
+//     subtracted from the lit shots of the same camera and place before
+//     their spots are detected (use_dark_frames, vision/dark_frame.h).
 //  3. Start poses of every image and tag from the tags (PosesFromTags,
 //     vision/tag_poses.h; the scale is that of the nominal tag size).
 //  4. Bundle adjustment of the tag corners (cameras' intrinsics held, one
@@ -148,6 +151,16 @@ struct FrontEndOptions {
   bool one_pose_per_camera = false;
   double max_camera_move_mm = 5.0;
   double max_camera_turn_mrad = 2.0;
+  // Laser-off (dark) frames (vision/dark_frame.h; docs/images.md,
+  // "Laser-off frames"). A shot with "lasers": [] shows no laser: its tags
+  // are used, its spots are not looked for, and it is in no exposure group.
+  // With use_dark_frames, each lit shot's spots are detected in its image
+  // minus the laser-off shot of the same camera whose tags moved least,
+  // when their common tags' corners moved at most max_dark_frame_shift_px
+  // (median; else the camera moved between the shots and the lit image is
+  // used alone, with a note). > 0.
+  bool use_dark_frames = true;
+  double max_dark_frame_shift_px = 1.0;
   // Worker threads for the detection (and for CalibrateFromImages' re-solves
   // of the shared errors), >= 0; 0 = every core.
   int num_threads = 0;
@@ -168,6 +181,8 @@ struct ImageFindings {
   int spots_matched = 0;          // of those, in a 3D spot
   int spots_saturated = 0;        // of the spots, those with a saturated pixel
   bool lossy_jpeg = false;        // the file is a JPEG
+  bool laser_off = false;         // "lasers": [] (a dark frame)
+  std::string dark_frame;         // the laser-off shot subtracted before detecting spots, or empty
   bool placed = false;            // its pose was found
   double tag_rms_px = 0.0;        // RMS tag corner residual after the adjustment
   double spot_rms_px = 0.0;       // RMS spot residual after the adjustment
@@ -176,6 +191,11 @@ struct ImageFindings {
   double tag_model_rms_px = 0.0;
   double spot_model_rms_px = 0.0;
   std::vector<std::string> notes; // why something was not used
+  // The laser spots kept (spots_detected of them; FrontEndSpot::views
+  // index them) and the centres of the blobs the spot gates rejected, for
+  // overlays and checks.
+  std::vector<DetectedSpot> spots;
+  std::vector<Eigen::Vector2d> rejected_blobs_px;
 };
 
 // A laser spot in 3D.

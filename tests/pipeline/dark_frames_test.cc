@@ -1,0 +1,223 @@
+// Laser-off (dark) frames against clutter, on the harder virtual lab: the
+// small scene (four 1024 x 768 cameras, two 11 x 11 grids, speckle, noise)
+// in colour on a wall textured with a photograph of fruit (red and
+// orange: clutter in the laser's own channel), with an ambient ramp,
+// vignetting, defocus and 40 distractors per camera (highlights, lamps,
+// retro-reflective dots), plus one laser-off shot per camera. Measured
+// twice, with and without subtracting the dark frames; spot recall and
+// false spots per image are counted against the renderer's truth, wrong
+// identifications against the true points, and s against the true scale.
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <map>
+#include <string>
+
+#include <Eigen/Geometry>
+#include <gtest/gtest.h>
+
+#include "opl/io/scene_json.h"
+#include "opl/lab/render_scene.h"
+#include "opl/pipeline/measure_images.h"
+#include "opl/sim/module_design.h"
+#include "support/scene_images.h"
+
+namespace opl {
+namespace {
+
+using test::FreshTempDir;
+using test::SourceDir;
+
+Scene ClutteredScene() {
+  Result<Scene> scene = ReadSceneJson(SourceDir() + "/examples/scene_small.json");
+  EXPECT_TRUE(scene.ok()) << scene.status().ToString();
+  Scene s = std::move(scene).value();
+  s.image.color = true;
+  s.image.wall_texture = SourceDir() + "/tests/data/textures/fruits.jpg";
+  s.image.wall_texture_contrast = 1.0;
+  s.image.ambient_gradient = 0.1;
+  s.image.ambient_angle_deg = 20.0;
+  s.image.vignetting = 0.3;
+  s.image.defocus_sigma_px = 0.5;
+  s.image.distractors = 40;
+  s.image.format = "jpeg";
+  s.image.jpeg_quality = 90;
+  for (const SceneCamera& camera : std::vector<SceneCamera>(s.cameras)) {
+    s.shots.push_back({camera.name, camera.name + "_off.jpg", {}, 0});
+  }
+  for (SceneShot& shot : s.shots) {
+    shot.file = shot.file.substr(0, shot.file.rfind('.')) + ".jpg";
+  }
+  return s;
+}
+
+struct Counts {
+  int visible = 0;  // true spots inside the lit images
+  int found = 0;    // of those, with a kept detection within 1 px
+  int false_spots = 0;  // kept detections farther than 1 px from every true spot
+};
+
+Counts CountSpots(const SceneRenderer& truth, const ImageMeasureReport& report) {
+  Counts c;
+  for (size_t i = 0; i < truth.scene().shots.size(); ++i) {
+    if (truth.scene().shots[i].lasers.empty()) continue;
+    Result<RenderedShot> shot = truth.RenderShot(static_cast<int>(i));
+    EXPECT_TRUE(shot.ok());
+    const std::vector<DetectedSpot>& kept = report.front_end.images[i].spots;
+    for (const SpotView& v : shot->spots) {
+      if (!v.visible) continue;
+      ++c.visible;
+      for (const DetectedSpot& d : kept) {
+        if ((Eigen::Vector2d(d.u_px, d.v_px) - v.center_px).norm() < 1.0) {
+          ++c.found;
+          break;
+        }
+      }
+    }
+    for (const DetectedSpot& d : kept) {
+      bool near = false;
+      for (const SpotView& v : shot->spots) {
+        near = near || (v.center_px.allFinite() &&
+                        (Eigen::Vector2d(d.u_px, d.v_px) - v.center_px).norm() < 1.0);
+      }
+      c.false_spots += near ? 0 : 1;
+    }
+  }
+  return c;
+}
+
+// The similarity from the identified spots to their true points (source,
+// beam): its scale, and the identified spots whose mapped point is more
+// than 5 mm from their beam's true point (wrong identifications).
+struct TruthFit {
+  double scale = 0.0;
+  int points = 0;
+  int wrong = 0;
+};
+
+TruthFit FitToTruth(const ImageMeasureReport& report, const SceneRenderer& truth) {
+  std::map<std::pair<std::string, int>, Eigen::Vector3d> true_point;
+  for (const SceneSpotTruth& s : truth.spots()) true_point[{s.source, s.beam}] = s.point_in_scene;
+  std::vector<Eigen::Vector3d> measured, truths;
+  for (const Spot& spot : report.spots) {
+    if (!spot.assigned()) continue;
+    measured.push_back(spot.observation.point_in_scene);
+    truths.push_back(true_point.at({spot.source, spot.observation.beam_id}));
+  }
+  TruthFit fit;
+  fit.points = static_cast<int>(measured.size());
+  if (fit.points < 4) return fit;
+  Eigen::Matrix3Xd src(3, fit.points), dst(3, fit.points);
+  for (int i = 0; i < fit.points; ++i) {
+    src.col(i) = measured[static_cast<size_t>(i)];
+    dst.col(i) = truths[static_cast<size_t>(i)];
+  }
+  const Eigen::Matrix4d t = Eigen::umeyama(src, dst, true);
+  fit.scale = t.topLeftCorner<3, 3>().col(0).norm();
+  for (int i = 0; i < fit.points; ++i) {
+    const Eigen::Vector3d mapped = t.topLeftCorner<3, 3>() * src.col(i) + t.topRightCorner<3, 1>();
+    fit.wrong += (mapped - dst.col(i)).norm() > 5.0 ? 1 : 0;
+  }
+  return fit;
+}
+
+TEST(DarkFrames, SubtractingThemClearsTheClutter) {
+  const Scene scene = ClutteredScene();
+  const std::filesystem::path dir = FreshTempDir("dark_frames");
+  Result<SceneRenderer> truth = test::RenderShotsTo(scene, dir, 2);
+  ASSERT_TRUE(truth.ok()) << truth.status().ToString();
+  Result<ModuleCalibration> calibration = ExactCalibration(*scene.module);
+  ASSERT_TRUE(calibration.ok());
+
+  ImageMeasureOptions options;
+  options.front_end.num_threads = 2;
+  Result<ImageMeasureReport> with = MeasureScaleFromImages(scene, dir.string(), *calibration, options);
+  ASSERT_TRUE(with.ok()) << with.status().ToString();
+  options.front_end.use_dark_frames = false;
+  Result<ImageMeasureReport> without =
+      MeasureScaleFromImages(scene, dir.string(), *calibration, options);
+
+  const Counts c_with = CountSpots(*truth, *with);
+  const TruthFit f_with = FitToTruth(*with, *truth);
+  const double s_with = with->measure.scale.scale_factor;
+  const double u_with = with->measure.scale.u_scale_factor;
+  std::printf("with dark frames: recall %d/%d, false spots %d; %d identified, %d wrong; "
+              "s/s_true - 1 = %.2e, u(s) = %.2e\n",
+              c_with.found, c_with.visible, c_with.false_spots, f_with.points, f_with.wrong,
+              s_with / f_with.scale - 1.0, u_with);
+  if (without.ok()) {
+    const Counts c = CountSpots(*truth, *without);
+    const TruthFit f = FitToTruth(*without, *truth);
+    std::printf("without: recall %d/%d, false spots %d; %d identified, %d wrong; "
+                "s/s_true - 1 = %.2e, u(s) = %.2e; %zu warnings\n",
+                c.found, c.visible, c.false_spots, f.points, f.wrong,
+                without->measure.scale.scale_factor / f.scale - 1.0,
+                without->measure.scale.u_scale_factor, without->front_end.warnings.size());
+    // The clutter is real: without the dark frames it passes the spot gates.
+    EXPECT_GT(c.false_spots, 4 * std::max(1, c_with.false_spots));
+  } else {
+    std::printf("without: refused: %s\n", without.status().ToString().c_str());
+  }
+  std::printf("%s", with->front_end.ToText().c_str());
+
+  for (const ImageFindings& f : with->front_end.images) {
+    if (f.laser_off) {
+      EXPECT_EQ(f.spots_detected, 0) << f.file;
+      continue;
+    }
+    EXPECT_EQ(f.dark_frame, f.camera + "_off.jpg") << f.file;
+  }
+  EXPECT_GE(c_with.found, 0.98 * c_with.visible);
+  EXPECT_LE(c_with.false_spots, 16);  // 2 per lit image (8 seen: JPEG ringing at lamps)
+  EXPECT_EQ(f_with.wrong, 0);
+  EXPECT_GE(f_with.points, 200);
+  EXPECT_LT(std::abs(s_with / f_with.scale - 1.0), 3.0 * u_with);
+}
+
+// A camera that moved between its lit and laser-off shots: the tags say so,
+// the dark frame is not used, and the image says why.
+TEST(DarkFrames, ADarkFrameFromElsewhereIsNotUsed) {
+  Result<Scene> read = ReadSceneJson(SourceDir() + "/examples/scene_small.json");
+  ASSERT_TRUE(read.ok());
+  Scene scene = *read;
+  scene.shots.resize(4);  // grid A, cameras 0-3
+  // cam0's laser-off shot, taken by a second camera with cam0's name' twin
+  // standing 40 mm to the side: rendered separately, then filed as cam0's.
+  Scene moved = scene;
+  moved.cameras[0].cam_from_scene->translation += Eigen::Vector3d(40.0, 0.0, 0.0);
+  moved.shots = {{"cam0", "cam0_off.png", {}, 0}};
+  const std::filesystem::path dir = FreshTempDir("dark_frame_moved");
+  ASSERT_TRUE(test::RenderShotsTo(scene, dir, 2).ok());
+  ASSERT_TRUE(test::RenderShotsTo(moved, dir, 1).ok());
+  scene.shots.push_back({"cam0", "cam0_off.png", {}, 0});
+
+  Result<FrontEndResult> fe = RunImageFrontEnd(scene, dir.string(), [] {
+    FrontEndOptions o;
+    o.num_threads = 2;
+    return o;
+  }());
+  ASSERT_TRUE(fe.ok()) << fe.status().ToString();
+  const ImageFindings& cam0 = fe->images[0];
+  EXPECT_TRUE(cam0.dark_frame.empty());
+  ASSERT_FALSE(cam0.notes.empty());
+  EXPECT_NE(cam0.notes[0].find("laser-off shot of the same camera not subtracted: its tags moved "
+                               "(cam0_off.png "),
+            std::string::npos)
+      << cam0.notes[0];
+  EXPECT_GT(cam0.spots_detected, 100);
+}
+
+TEST(DarkFrames, AllShotsLaserOffIsRefused) {
+  Result<Scene> read = ReadSceneJson(SourceDir() + "/examples/scene_small.json");
+  ASSERT_TRUE(read.ok());
+  Scene scene = *read;
+  for (SceneShot& shot : scene.shots) shot.lasers.clear();
+  Result<FrontEndResult> fe = RunImageFrontEnd(scene, "/nonexistent", FrontEndOptions());
+  ASSERT_FALSE(fe.ok());
+  EXPECT_EQ(fe.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_EQ(fe.status().message(),
+            "every one of the 8 shots has \"lasers\": [] (laser off): no shot shows a laser");
+}
+
+}  // namespace
+}  // namespace opl

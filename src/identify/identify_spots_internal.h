@@ -1,0 +1,186 @@
+// Private to src/identify: the pieces of IdentifySpots shared by its files
+// (opl/identify/identify_spots.h has the contract and the algorithm's steps).
+//
+//   pattern_index.h/.cc     a pattern's lattice model and nearest-beam lookup
+//   identify_seeds.cc       step 1: seeds (lattice crosses among the points)
+//   identify_hypotheses.cc  step 2: hypotheses of a seed, their poses, scores
+//   identify_refine.cc      step 3: a candidate grown and refined; assignment
+//   identify_rivals.cc      steps 4-5: alternatives of a detection, its cost
+//   identify_spots.cc       IdentifySpots: the search over seeds, decisions
+//   identify_result.cc      options validation, result counts and text
+//
+// Frames: points are in the scene frame; a pose PoseRt is source_from_scene,
+// a Rigid3d scene_from_source. Angles are chords of unit vectors in the
+// source frame, in rad (~ the angle for small angles).
+#pragma once
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <functional>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "identify/pattern_index.h"
+#include "opl/geometry/rigid3.h"
+#include "opl/identify/identify_spots.h"
+#include "opl/locate/p3p.h"
+#include "opl/locate/pose_normal_equations.h"
+#include "opl/model/module_calibration.h"
+#include "opl/model/spot.h"
+
+namespace opl {
+namespace identify_internal {
+
+// The points to identify.
+struct Pool {
+  std::vector<Eigen::Vector3d> p;   // scene
+  std::vector<int> spot;            // input index
+  std::vector<int> only_source;     // -1: any source
+  std::vector<char> taken;          // assigned to a found source
+  std::vector<char> blocked;        // not to be used as a seed point any more
+  int size() const { return static_cast<int>(p.size()); }
+};
+
+struct Seed {
+  int p0 = 0, pa = 0, pb = 0;
+  double quality = 0.0;  // smaller is better
+  // The seed's lattice patch: points and their (col, row) offsets from p0
+  // along (a, b): p0, p0 +- a, p0 +- b and the supported p0 +- a +- b,
+  // p0 +- 2a, p0 +- 2b.
+  std::vector<std::pair<int, Eigen::Vector2i>> patch;
+};
+
+// The seeds of the pool (identify_spots.h, step 1), best first: points with
+// two pairs of opposite neighbours among their k nearest, worked in `threads`
+// threads (the result does not depend on their number).
+std::vector<Seed> FindSeeds(const Pool& pool, int k, int threads);
+
+// The crosses (2a, b), (a, 2b) and (a + b, a - b) derived from a seed's
+// cross (a, b), with the patch points on their lattice.
+std::vector<Seed> DerivedSeeds(const Seed& seed);
+
+// One refined explanation of some points by one source.
+struct Detection {
+  int source = -1;
+  Rigid3d scene_from_source;
+  double sigma = 0.0;  // robust per-component angular noise, rad
+  std::vector<int> point;   // pool indices
+  std::vector<int> beam;    // beam ids, parallel
+  std::vector<double> residual;  // angles, rad, parallel
+  double cost = 0.0;        // truncated chi^2 over the pool (set by the caller)
+  int conflicts = 0;
+};
+
+struct Candidate {
+  int source = -1;
+  PoseRt pose;  // source_from_scene
+  int score = 0;
+  // Lattice node (col, row) of the seed point; refinement grows from it when
+  // `grow` (a pose from three neighbouring spots is right only near them).
+  Eigen::Vector2i node = Eigen::Vector2i::Zero();
+  bool grow = false;
+};
+
+// True when a and b give (mostly) the same correspondence.
+bool SameCorrespondence(const Detection& a, const Detection& b);
+
+// The steps of the search on one pool of points for the sources of one
+// calibration (their PatternIndex), and the limits that accept a detection.
+// The pool is read (taken points are skipped), never changed. One thread.
+class Identifier {
+ public:
+  Identifier(const ModuleCalibration& calibration, const IdentifyOptions& options, Pool* pool,
+             const std::vector<std::vector<char>>& beam_reserved)
+      : calibration_(calibration), options_(options), pool_(*pool), reserved_(beam_reserved) {
+    for (const SourceCalibration& s : calibration.sources) index_.push_back(BuildIndex(s.pattern));
+  }
+
+  const PatternIndex& index(int s) const { return index_[s]; }
+
+  bool Eligible(int i, int s) const {
+    return !pool_.taken[i] && (pool_.only_source[i] < 0 || pool_.only_source[i] == s);
+  }
+
+  // A hypothesis of step 2: the seed point at lattice node L0 of source s,
+  // its patch's offsets mapped by symmetry g; `count` estimates how many
+  // points it explains (the histogram).
+  struct Hypothesis {
+    int source, g;
+    Eigen::Vector2i L0;
+    int count;
+  };
+
+  // Step 2 (identify_hypotheses.cc).
+  // The hypotheses of source s from a seed, appended to `out`.
+  void Hypotheses(int s, const Seed& seed, std::vector<Hypothesis>* out) const;
+  // The candidate poses of the hypotheses of every source, checked in the
+  // order of their counts until `clear` says a candidate settles the seed.
+  void Candidates(const Seed& seed, std::vector<Hypothesis> hyps, std::vector<Candidate>* out,
+                  const std::function<bool(const Candidate&)>& clear) const;
+  // The gate of a P3P guess on the seed's patch, in beam spacings.
+  static constexpr double kGuessGateSpacings = 0.25;
+  // The P3P pose of the seed's cross that fits its patch at (L0, g), or nullptr.
+  const PoseRt* BestOnPatch(int s, const Seed& seed, const Eigen::Vector2i& L0, int g,
+                            const std::array<PoseRt, 4>& poses, int num_poses) const;
+  // The pose of source s that maps the seed's patch onto the beams L0 + g offset.
+  bool PatchPose(int s, const Seed& seed, const Eigen::Vector2i& L0, int g, const PoseRt* guess,
+                 PoseRt* pose) const;
+  // Least squares of the patch's observations that fit `guess`.
+  bool FitPatch(const PatternIndex& idx, const std::vector<SpotObservation>& obs, const PoseRt& guess,
+                PoseRt* pose) const;
+  // Points of source s whose nearest beam under `pose` is within `gate`.
+  int Score(int s, const PoseRt& pose, double gate, const Eigen::Matrix3Xd& points) const;
+
+  // Step 3 (identify_refine.cc).
+  // Points assigned to beams of source s under scene_from_source within
+  // `gate` (and within `radius` nodes of `centre`).
+  Detection Assign(int s, const Rigid3d& scene_from_source, double gate, double sigma,
+                   const Eigen::Vector2i& centre = Eigen::Vector2i::Zero(), int radius = 1 << 20) const;
+  // A candidate grown onto its grid and refined; false when rejected.
+  bool Refine(const Candidate& c, Detection* out) const;
+  // Angle from point p (scene) to its nearest beam of source s; infinity when none.
+  double NearestAngle(int s, const Rigid3d& scene_from_source, const Eigen::Vector3d& p) const;
+
+  // Steps 4 and 5 (identify_rivals.cc).
+  // Candidate poses for the alternatives of detection d in the allowed sources.
+  std::vector<Candidate> Alternatives(const Detection& d, const std::vector<char>& allowed) const;
+  // Truncated chi^2 of a detection's pose over the pool, with a common sigma.
+  double Cost(const Detection& d, double sigma) const;
+
+  // Largest noise sigma of an accepted detection of source s, rad.
+  double MaxSigma(int s) const {
+    return options_.max_sigma_fraction * index_[s].spacing_rad +
+           (options_.directions_nominal ? options_.nominal_tolerance_rad : 0.0);
+  }
+
+  // Fewest points a detection of source s must explain.
+  int MinPoints(int s) const {
+    const int beams = static_cast<int>(index_[s].pattern->beams().size());
+    return std::max(options_.min_spots, static_cast<int>(std::ceil(options_.min_fraction * beams)));
+  }
+
+  double Gate(double sigma, double cap) const {
+    double g = options_.assign_gate_sigma * sigma;
+    if (options_.directions_nominal) g = std::hypot(g, options_.nominal_tolerance_rad);
+    return std::min(g, cap);
+  }
+
+  double FinalGate(int s, double sigma) const {
+    return Gate(sigma, options_.score_gate_fraction * index_[s].spacing_rad +
+                           (options_.directions_nominal ? options_.nominal_tolerance_rad : 0.0));
+  }
+
+ private:
+  const ModuleCalibration& calibration_;
+  const IdentifyOptions& options_;
+  Pool& pool_;
+  const std::vector<std::vector<char>>& reserved_;
+  std::vector<PatternIndex> index_;
+  mutable PoseNormalEquations patch_problem_;  // FitPatch's scratch (one thread)
+};
+
+}  // namespace identify_internal
+}  // namespace opl

@@ -2,8 +2,11 @@
 // sources (docs/cli.md). The work is done by opl::MeasureScale
 // (include/opl/pipeline/measure.h); this file parses options, reads files,
 // prints and maps errors to exit codes.
+#include <filesystem>
 #include <iostream>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "cli_common.h"
 #include "progress_bar.h"
@@ -15,6 +18,7 @@
 #include "opl/io/spots_csv.h"
 #include "opl/pipeline/measure.h"
 #include "opl/pipeline/measure_images.h"
+#include "opl/pipeline/measure_overlays.h"
 
 namespace {
 
@@ -28,6 +32,7 @@ struct Args {
   std::string apply_path;
   std::string out_path;
   std::string images_dir;
+  std::string overlays_dir;
   std::string scene_path;
   std::string spots_out_path;
   int threads = 0;
@@ -79,12 +84,45 @@ int RunImages(const Args& args) {
     if (Status st = points->Scale(report->measure.scale.scale_factor); !st.ok()) {
       return cli::Fail(kTool, st.message(), cli::kExitNoSolution);
     }
-    if (Status st = WriteFileAtomically(args.out_path, points->Format()); !st.ok()) {
+  }
+  std::vector<std::pair<std::string, std::string>> overlays;
+  if (!args.overlays_dir.empty()) {
+    Result<std::vector<std::pair<std::string, std::string>>> drawn =
+        RenderOverlays(*scene, args.images_dir, *report, args.threads);
+    if (!drawn.ok()) return cli::FailInput(kTool, drawn.status());
+    overlays = std::move(*drawn);
+  }
+  // Every output or none.
+  std::vector<std::string> written;
+  const auto write = [&written](const std::string& path, const std::string& contents) {
+    Status st = WriteFileAtomically(path, contents);
+    if (st.ok()) written.push_back(path);
+    return st;
+  };
+  const auto undo = [&written]() {
+    std::error_code ec;
+    for (const std::string& path : written) std::filesystem::remove(path, ec);
+  };
+  if (!args.overlays_dir.empty()) {
+    std::error_code ec;
+    for (const auto& [name, bytes] : overlays) {
+      const std::filesystem::path path = std::filesystem::path(args.overlays_dir) / name;
+      std::filesystem::create_directories(path.parent_path(), ec);
+      if (Status st = write(path.string(), bytes); !st.ok()) {
+        undo();
+        return cli::FailWrite(kTool, st);
+      }
+    }
+  }
+  if (points) {
+    if (Status st = write(args.out_path, points->Format()); !st.ok()) {
+      undo();
       return cli::FailWrite(kTool, st);
     }
   }
   if (!args.spots_out_path.empty()) {
-    if (Status st = WriteFileAtomically(args.spots_out_path, spots_csv); !st.ok()) {
+    if (Status st = write(args.spots_out_path, spots_csv); !st.ok()) {
+      undo();
       return cli::FailWrite(kTool, st);
     }
   }
@@ -142,6 +180,12 @@ int Run(int argc, char** argv) {
                      "With --images: write the 3D spots as a spots CSV with the source and beam\n"
                      "each was assigned and its sx,sy,sz (atomically)")
           ->type_name("FILE");
+  app.add_option("--overlays", args.overlays_dir,
+                 "With --images: write, for every image, DIR/<image>_overlay.jpg: the image\n"
+                 "dimmed, with the tags found (cyan, with ids), the spots identified (green,\n"
+                 "with source and beam), matched (yellow), unmatched (orange) and the blobs\n"
+                 "rejected as not laser spots (red x) (docs/images.md, 'Overlays')")
+      ->needs(images);
   app.add_option("--threads", args.threads, "With --images: detection threads, >= 0; 0 = every core")
       ->capture_default_str();
   app.add_flag("--one-pose-per-camera", args.one_pose_per_camera,

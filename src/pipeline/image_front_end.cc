@@ -445,6 +445,7 @@ Status FrontEndRun::Detect() {
     f.laser_off = scene.shots[static_cast<size_t>(i)].lasers.empty();
     f.spots = data[static_cast<size_t>(i)].spots;
     f.rejected_blobs_px = data[static_cast<size_t>(i)].rejected_blobs_px;
+    f.tags = data[static_cast<size_t>(i)].tags;
     const ImageData& d = data[static_cast<size_t>(i)];
     if (d.dark_frame >= 0) {
       f.dark_frame = scene.shots[static_cast<size_t>(d.dark_frame)].file;

@@ -11,6 +11,8 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
 
 #include "cli_test_util.h"
 
@@ -36,9 +38,28 @@ TEST(ImagesCli, SimulateThenMeasure) {
   r = Simulate("images --scene " + kScene + " --out " + shots);
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const std::string spots_out = dir.File("spots3d.csv");
+  const std::string overlays = dir.File("overlays");
+  // An output that cannot be written: exit 5, and none of the others stays
+  // (the overlays were written first).
   r = Measure("--calibration " + calibration + " --images " + shots + " --scene " + kScene +
-              " --spots-out " + spots_out + " --json");
+              " --overlays " + overlays + " --spots-out " + dir.File("missing/spots3d.csv"));
+  EXPECT_EQ(r.exit_code, 5) << r.err;
+  EXPECT_TRUE(!std::filesystem::exists(overlays) || std::filesystem::is_empty(overlays));
+  r = Measure("--calibration " + calibration + " --images " + shots + " --scene " + kScene +
+              " --spots-out " + spots_out + " --overlays " + overlays + " --json");
   ASSERT_EQ(r.exit_code, 0) << r.err;
+  // One overlay per shot, the image's size, with the identified spots drawn
+  // in green (pure green pixels do not occur in the dimmed grey image).
+  for (const std::string name : {"cam0_A", "cam1_A", "cam2_A", "cam3_A", "cam0_B", "cam1_B",
+                                 "cam2_B", "cam3_B"}) {
+    const cv::Mat overlay = cv::imread(overlays + "/" + name + "_overlay.jpg", cv::IMREAD_COLOR);
+    ASSERT_FALSE(overlay.empty()) << name;
+    EXPECT_EQ(overlay.cols, 1024);
+    EXPECT_EQ(overlay.rows, 768);
+    cv::Mat green;
+    cv::inRange(overlay, cv::Scalar(0, 170, 0), cv::Scalar(90, 255, 90), green);
+    EXPECT_GT(cv::countNonZero(green), 100 * 5) << name;  // ~100 rings, ~11 px each seen
+  }
   const nlohmann::json report = nlohmann::json::parse(r.out);
   EXPECT_EQ(report["format"], "opl.image_measure_report");
   EXPECT_EQ(report["images"].size(), 8u);

@@ -19,6 +19,7 @@
 #include "opl/io/scene_json.h"
 #include "opl/lab/render_scene.h"
 #include "opl/pipeline/measure_images.h"
+#include "opl/pipeline/measure_overlays.h"
 #include "opl/sim/module_design.h"
 #include "support/scene_images.h"
 
@@ -167,6 +168,29 @@ TEST(DarkFrames, SubtractingThemClearsTheClutter) {
     }
     EXPECT_EQ(f.dark_frame, f.camera + "_off.jpg") << f.file;
   }
+  // The overlays label each identified spot with its beam: the truth's
+  // pixel of that beam is under it.
+  int labelled = 0, mislabelled = 0;
+  for (size_t i = 0; i < scene.shots.size(); ++i) {
+    if (scene.shots[i].lasers.empty()) continue;
+    Result<RenderedShot> shot = truth->RenderShot(static_cast<int>(i));
+    ASSERT_TRUE(shot.ok());
+    std::map<std::string, Eigen::Vector2d> truth_px;
+    for (const SpotView& v : shot->spots) {
+      const SceneSpotTruth& t = truth->spots()[static_cast<size_t>(v.spot_index)];
+      truth_px[t.source + std::to_string(t.beam)] = v.center_px;
+    }
+    for (const ShotOverlay::Spot& o : OverlayOfImage(*with, static_cast<int>(i)).spots) {
+      if (o.state != ShotOverlay::SpotState::kIdentified) continue;
+      ++labelled;
+      const auto found = truth_px.find(o.label);
+      if (found == truth_px.end() || (found->second - o.center_px).norm() > 1.0) ++mislabelled;
+    }
+  }
+  std::printf("overlays: %d spots labelled, %d mislabelled\n", labelled, mislabelled);
+  EXPECT_GT(labelled, 8 * 100);
+  EXPECT_EQ(mislabelled, 0);
+
   EXPECT_GE(c_with.found, 0.98 * c_with.visible);
   EXPECT_LE(c_with.false_spots, 16);  // 2 per lit image (8 seen: JPEG ringing at lamps)
   EXPECT_EQ(f_with.wrong, 0);

@@ -196,6 +196,7 @@ struct ImageFindings {
   // overlays and checks.
   std::vector<DetectedSpot> spots;
   std::vector<Eigen::Vector2d> rejected_blobs_px;
+  std::vector<TagDetection> tags;  // the tags detected (tag_ids' corners)
 };
 
 // A laser spot in 3D.

@@ -75,6 +75,9 @@ Status SpotDetectionOptions::Validate() const {
   if (!(merged_dip_fraction > 0 && merged_dip_fraction <= 1)) {
     return bad("merged_dip_fraction", merged_dip_fraction, "must be in (0, 1]");
   }
+  if (!(min_spot_separation_px >= 0) || !std::isfinite(min_spot_separation_px)) {
+    return bad("min_spot_separation_px", min_spot_separation_px, "must be finite and >= 0");
+  }
   if (!(saturation_dn >= 0) || !std::isfinite(saturation_dn)) {
     return bad("saturation_dn", saturation_dn, "must be finite and >= 0 (0: the type's maximum)");
   }
@@ -99,7 +102,8 @@ std::string SpotDetectionResult::ToText() const {
   std::ostringstream s;
   s << spots.size() << " spots from " << components << " components (rejected: " << rejected_small
     << " small, " << rejected_large << " large, " << rejected_border << " at the border, "
-    << rejected_elongated << " elongated, " << rejected_merged << " merged); background "
+    << rejected_elongated << " elongated, " << rejected_merged << " merged, " << rejected_duplicate
+    << " duplicate); background "
     << FormatNumber(background_dn, 6) << " DN, noise " << FormatNumber(noise_dn, 4)
     << " DN, threshold " << FormatNumber(threshold_dn, 4) << " DN above background";
   return s.str();
@@ -514,6 +518,31 @@ Result<SpotDetectionResult> DetectSpots(const cv::Mat& image, const SpotDetectio
   std::sort(result.spots.begin(), result.spots.end(), [](const DetectedSpot& a, const DetectedSpot& b) {
     return a.v_px != b.v_px ? a.v_px < b.v_px : a.u_px < b.u_px;
   });
+  // 6. Duplicates: a sweep along v (sorted) over the pairs closer than the
+  // separation; the lower peak of each such pair is dropped.
+  const double separation = options.min_spot_separation_px;
+  if (separation > 0.0 && result.spots.size() > 1) {
+    std::vector<bool> dropped(result.spots.size(), false);
+    for (size_t i = 0; i < result.spots.size(); ++i) {
+      const DetectedSpot& a = result.spots[i];
+      for (size_t j = i + 1; j < result.spots.size(); ++j) {
+        const DetectedSpot& b = result.spots[j];
+        if (b.v_px - a.v_px >= separation) break;
+        if (std::hypot(b.u_px - a.u_px, b.v_px - a.v_px) >= separation) continue;
+        dropped[b.peak_dn > a.peak_dn ? i : j] = true;
+      }
+    }
+    std::vector<DetectedSpot> kept;
+    kept.reserve(result.spots.size());
+    for (size_t i = 0; i < result.spots.size(); ++i) {
+      if (dropped[i]) {
+        ++result.rejected_duplicate;
+      } else {
+        kept.push_back(result.spots[i]);
+      }
+    }
+    result.spots = std::move(kept);
+  }
   return result;
 }
 

@@ -314,6 +314,40 @@ TEST(SpotDetection, FindsEverySpotAboveSnr20) {
   EXPECT_LT(e.max_fit, 0.3);
 }
 
+// Step 6: of two detections closer than min_spot_separation_px the one of
+// lower peak goes. Two separate spots 30 px apart: both kept at the default
+// (2 px), the fainter dropped when the separation is set to 35 px.
+TEST(SpotDetection, DuplicatesKeepTheBrighter) {
+  SpotImageOptions o;
+  o.width_px = 120;
+  o.height_px = 80;
+  o.background_dn = 300;
+  o.read_noise_dn = 3;
+  SpotToRender bright, faint;
+  bright.u_px = 50.3;
+  bright.v_px = 40.2;
+  bright.shape_covariance_px2 = RoundSpotShape(6.0);
+  bright.peak_dn = 3000;
+  faint = bright;
+  faint.u_px = 80.3;
+  faint.peak_dn = 1500;
+  auto img = RenderSpotImage({bright, faint}, o);
+  ASSERT_TRUE(img.ok());
+  auto r = DetectSpots(img->image);
+  ASSERT_TRUE(r.ok());
+  EXPECT_EQ(r->spots.size(), 2u) << r->ToText();
+  EXPECT_EQ(r->rejected_duplicate, 0);
+  SpotDetectionOptions wide;
+  wide.min_spot_separation_px = 35.0;
+  r = DetectSpots(img->image, wide);
+  ASSERT_TRUE(r.ok());
+  ASSERT_EQ(r->spots.size(), 1u) << r->ToText();
+  EXPECT_EQ(r->rejected_duplicate, 1);
+  EXPECT_NEAR(r->spots[0].u_px, 50.3, 0.1);
+  wide.min_spot_separation_px = -1.0;
+  EXPECT_FALSE(DetectSpots(img->image, wide).ok());
+}
+
 TEST(SpotDetection, RejectsMergedAndElongatedBlobs) {
   SpotImageOptions o;
   o.width_px = 200;

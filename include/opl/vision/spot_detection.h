@@ -55,6 +55,9 @@
 //     of the same window 4-13 times more (it weights the noise of the wings
 //     by their distance), is biased by saturation, and is worse under speckle
 //     too (docs/spot_detection.md has the measured figures).
+//  6. Duplicates: of two detections whose centres are closer than
+//     min_spot_separation_px, the one of lower peak is dropped (a lumpy spot
+//     is one spot).
 //  5. Uncertainty. The centre's 2x2 covariance is s^2 (J^T W J)^-1 restricted
 //     to (u0, v0), s^2 = chi^2 / (n - 7) the reduced chi-square. After the
 //     speckle reweighting it is the sandwich H^-1 M H^-1 with the speckle
@@ -106,6 +109,11 @@ struct SpotDetectionOptions {
   // [px] with a dip between them below this fraction of the lower peak.
   double min_peak_separation_px = 3.0;
   double merged_dip_fraction = 0.7;
+  // Duplicates (step 6): two detections whose centres end closer than this
+  // [px] are one spot seen twice (a spot broken into two components, e.g.
+  // by JPEG's chroma blocks, whose two fits converge on it): the one of
+  // lower peak is dropped. >= 0 (0: keep both).
+  double min_spot_separation_px = 2.0;
   // Reject components that touch the image border.
   bool reject_border = true;
   // Pixels at or above this value are saturated [DN]; 0: the type's maximum
@@ -183,6 +191,7 @@ struct SpotDetectionResult {
   int rejected_border = 0;          // touching the border
   int rejected_elongated = 0;       // elongation > max_elongation
   int rejected_merged = 0;          // several peaks
+  int rejected_duplicate = 0;       // centre within min_spot_separation_px of a brighter one (step 6)
 
   // Short readable summary: counts, background, noise, threshold.
   std::string ToText() const;

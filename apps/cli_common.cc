@@ -3,8 +3,11 @@
 #include <cstdio>
 #include <exception>
 #include <iostream>
+#include <string>
 
 #include <glog/logging.h>
+
+#include "opl/model/beam_pattern.h"
 
 namespace opl {
 namespace cli {
@@ -55,6 +58,22 @@ std::optional<int> ParseCommandLine(CLI::App& app, int argc, char** argv) {
     return Fail(app.get_name(), std::string(e.what()) + " (see --help)", kExitUsage);
   }
   return std::nullopt;
+}
+
+CLI::Validator BeamsPerSideValidator() {
+  return CLI::Validator(
+      [](std::string& value) -> std::string {
+        long long n = 0;
+        size_t used = 0;
+        try {
+          n = std::stoll(value, &used);
+        } catch (const std::exception&) {
+          used = 0;
+        }
+        if (used == 0 || used != value.size()) return "not an integer: '" + value + "'";
+        return BeamsPerSideProblem(n);
+      },
+      "ODD N IN [3, " + std::to_string(kMaxBeamsPerSide) + "]");
 }
 
 void QuietSolverLogging(const std::string& tool) {

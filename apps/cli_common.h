@@ -45,6 +45,11 @@ int FailWrite(const std::string& tool, const Status& status);
 // usage error (printed on stderr as "<tool>: <error> (see --help)").
 std::optional<int> ParseCommandLine(CLI::App& app, int argc, char** argv);
 
+// CLI11 check of an option giving the beams per side n of a grid: an integer,
+// odd, in [3, kMaxBeamsPerSide] (model/beam_pattern.h); else a usage error
+// (exit 2) "--beams-per-side: must be odd and in [3, 201], got 100001".
+CLI::Validator BeamsPerSideValidator();
+
 // Ceres reports through glog (warnings such as "Linear solver failure"):
 // silenced in every tool, whose own messages say what failed.
 // QuietSolverLogging (called by RunTool) initialises glog logging to stderr

@@ -245,8 +245,9 @@ int Run(int argc, char** argv) {
                  "missing; files written atomically)")
       ->type_name("DIR");
   app.add_option("--beams-per-side", args.beams_per_side,
-                 "n of the n x n grids (odd >= 3); default: the smallest odd n with n^2 >= the\n"
-                 "largest beam id of each source")
+                 "n of the n x n grids (odd, 3 to 201); default: the smallest odd n with\n"
+                 "n^2 >= the largest beam id of each source")
+      ->check(cli::BeamsPerSideValidator())
       ->type_name("N");
   app.add_flag("--allow-extra-columns", args.allow_extra_columns,
                "Ignore unknown columns of the spots CSV instead of refusing them");

@@ -232,9 +232,8 @@ std::vector<BeamState*> Calibrator::ActiveBeams() {
 }
 
 Status Calibrator::CheckInput() {
-  if (n_ < 3 || n_ % 2 == 0) {
-    return Error(StatusCode::kInvalidArgument,
-                 "beams_per_side must be odd and >= 3, got " + std::to_string(n_));
+  if (Status st = CheckBeamsPerSide(n_); !st.ok()) {
+    return Error(StatusCode::kInvalidArgument, st.message());
   }
   std::map<int, std::map<int, int>> seen;  // beam -> slice -> sample index
   std::set<int> slices;

@@ -10,6 +10,7 @@
 #include "opl/core/format.h"
 #include "opl/geometry/rotation.h"
 #include "opl/io/atomic_file.h"
+#include "opl/model/beam_pattern.h"
 
 namespace opl {
 namespace {
@@ -199,8 +200,8 @@ Result<SourceCalibration> ParseSource(const Fields& f, const json& src, const st
 
   OPL_ASSIGN_OR_RETURN(n_json, f.Member(src, path, "beams_per_side"));
   OPL_ASSIGN_OR_RETURN(n, f.Int(*n_json, path + ".beams_per_side"));
-  if (n < 3 || n % 2 == 0) {
-    return f.Error(path + ".beams_per_side", "must be odd and >= 3, got " + std::to_string(n));
+  if (const std::string problem = BeamsPerSideProblem(n); !problem.empty()) {
+    return f.Error(path + ".beams_per_side", problem);
   }
 
   OPL_ASSIGN_OR_RETURN(origin_json, f.Member(src, path, "origin_mm"));

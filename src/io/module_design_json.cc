@@ -19,6 +19,7 @@
 #include "io/json_reader.h"
 #include "io/module_design_json_internal.h"
 #include "opl/geometry/rotation.h"
+#include "opl/model/beam_pattern.h"
 
 namespace opl {
 namespace {
@@ -141,8 +142,9 @@ class Reader : public json_internal::JsonReader {
     const json* n = Find(s, "beams_per_side");
     if (n != nullptr) {
       OPL_RETURN_IF_ERROR(Integer(*n, path + ".beams_per_side", &source->beams_per_side));
-      if (source->beams_per_side < 3 || source->beams_per_side % 2 == 0) {
-        return Error(path + ".beams_per_side", "must be odd and >= 3, got " + Describe(*n));
+      if (const std::string problem = BeamsPerSideProblem(source->beams_per_side);
+          !problem.empty()) {
+        return Error(path + ".beams_per_side", problem);
       }
     } else if (!from_file) {
       return Error(path + ".beams_per_side", "missing field");

@@ -102,10 +102,7 @@ const char* PatternModelName(PatternModel model) {
 Status CheckPatternParameters(PatternModel model, int beams_per_side, double full_angle_rad,
                               double wavelength_nm) {
   if (model == PatternModel::kFile) return Status::Ok();
-  if (beams_per_side < 3 || beams_per_side % 2 == 0) {
-    return Status::InvalidArgument("beams_per_side must be odd and >= 3, got " +
-                                   std::to_string(beams_per_side));
-  }
+  OPL_RETURN_IF_ERROR(CheckBeamsPerSide(beams_per_side));
   const double max_rad = model == PatternModel::kGrating ? 0.5 * kPi : kPi;
   if (!(std::isfinite(full_angle_rad) && full_angle_rad > 0.0 && full_angle_rad < max_rad)) {
     return Status::InvalidArgument(
@@ -249,10 +246,9 @@ Result<BeamPattern> ReadPatternCsv(const std::string& path) {
                                     std::to_string(beams_per_side_line) + ")");
         }
         int n = 0;
-        if (!ParseInt(rest, &n) || n < 3 || n % 2 == 0) {
-          return Status::ParseError(where(line_no) +
-                                    "beams_per_side must be an odd integer >= 3, got '" + rest +
-                                    "'");
+        if (!ParseInt(rest, &n) || !BeamsPerSideProblem(n).empty()) {
+          return Status::ParseError(where(line_no) + "beams_per_side must be an odd integer in [3, " +
+                                    std::to_string(kMaxBeamsPerSide) + "], got '" + rest + "'");
         }
         beams_per_side = n;
         beams_per_side_line = line_no;

@@ -6,6 +6,7 @@
 
 #include "opl/core/format.h"
 #include "opl/core/number_list.h"
+#include "opl/model/beam_pattern.h"
 #include "opl/sim/simulate_slices.h"
 
 namespace opl {
@@ -123,8 +124,10 @@ Result<ModuleDesign> ApplySweepValue(const ModuleDesign& base, SweepParameter pa
       break;
     case SweepParameter::kBeamsPerSide: {
       const double n = std::round(value);
-      if (n != value || n < 3 || std::fmod(n, 2.0) == 0.0 || n > 1001) {
-        return OutOfDomain(parameter, value, "must be an odd integer in [3, 1001]");
+      if (n != value || n < 3 || std::fmod(n, 2.0) == 0.0 || n > kMaxBeamsPerSide) {
+        return OutOfDomain(parameter, value,
+                           "must be an odd integer in [3, " + std::to_string(kMaxBeamsPerSide) +
+                               "]");
       }
       for (SourceDesign& s : d.sources) {
         if (s.pattern == PatternModel::kFile) {

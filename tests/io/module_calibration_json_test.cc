@@ -257,7 +257,14 @@ TEST(ModuleCalibrationJson, ErrorsNameFileAndFieldPath) {
             "cal.json: sources[1].name: duplicate source name 'A' (also sources[0])");
   EXPECT_EQ(ErrorOf("\"beams_per_side\": 3, \"origin_mm\": [1, 2, 3]",
                     "\"beams_per_side\": 4, \"origin_mm\": [1, 2, 3]"),
-            "cal.json: sources[0].beams_per_side: must be odd and >= 3, got 4");
+            "cal.json: sources[0].beams_per_side: must be odd and in [3, 201], got 4");
+  // Issue 19: grids beyond 201 x 201 (n^2 overflowed int at 46341).
+  for (const char* n : {"203", "46341", "100001"}) {
+    EXPECT_EQ(ErrorOf("\"beams_per_side\": 3, \"origin_mm\": [1, 2, 3]",
+                      std::string("\"beams_per_side\": ") + n + ", \"origin_mm\": [1, 2, 3]"),
+              std::string("cal.json: sources[0].beams_per_side: must be odd and in [3, 201], got ") +
+                  n);
+  }
   EXPECT_EQ(ErrorOf("[[1e-10, 0], [0, 2e-10]]", "[[1e-10, 0], [0, -2e-10]]"),
             "cal.json: sources[0].beams: beam 1: covariance is not symmetric positive "
             "semi-definite");

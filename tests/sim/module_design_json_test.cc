@@ -212,7 +212,11 @@ TEST(ModuleDesignJson, EveryErrorNamesFileFieldAndProblem) {
   ExpectError(Replace(ok, R"("origin_mm": [0, 27.5, 0])", R"("origin_mm": [0, null, 0])"),
               "design.json: sources[0].origin_mm[1]: expected a number, got null");
   ExpectError(Replace(ok, R"("beams_per_side": 11)", R"("beams_per_side": 10)"),
-              "design.json: sources[0].beams_per_side: must be odd and >= 3, got 10");
+              "design.json: sources[0].beams_per_side: must be odd and in [3, 201], got 10");
+  ExpectError(Replace(ok, R"("beams_per_side": 11)", R"("beams_per_side": 46341)"),
+              "design.json: sources[0].beams_per_side: must be odd and in [3, 201], got 46341");
+  ExpectError(Replace(ok, R"("beams_per_side": 11)", R"("beams_per_side": 100001)"),
+              "design.json: sources[0].beams_per_side: must be odd and in [3, 201], got 100001");
   ExpectError(Replace(ok, R"("beams_per_side": 11)", R"("beams_per_side": 11.5)"),
               "design.json: sources[0].beams_per_side: expected an integer, got 11.5");
   ExpectError(Replace(ok, R"("full_angle_deg": 20)", R"("full_angle_deg": 95)"),

@@ -1,0 +1,137 @@
+// Issue 19 (security and robustness audit): hostile or corrupt inputs given to
+// the tools as a user would. Every one must end at once (well under a second)
+// with the documented exit code (3 for a bad file, 2 for an option out of
+// range), ONE line on stderr naming the file (and line or field) or the
+// option, nothing on stdout, and no output file (nor a temporary one) left.
+#include <chrono>
+#include <string>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "cli_test_util.h"
+#include "io/temp_dir.h"
+
+namespace opl {
+namespace {
+
+using cli_test::Calibrate;
+using cli_test::Measure;
+using cli_test::RunResult;
+using cli_test::Simulate;
+using testing_support::ReadAll;
+using testing_support::TempDir;
+using ::testing::HasSubstr;
+using ::testing::StartsWith;
+
+const std::string kExamples = OPL_EXAMPLES_DIR;
+
+// `text` with its first `from` replaced by `to` (the test fails when absent).
+std::string ReplaceFirst(std::string text, const std::string& from, const std::string& to) {
+  const size_t at = text.find(from);
+  EXPECT_NE(at, std::string::npos) << from;
+  if (at != std::string::npos) text.replace(at, from.size(), to);
+  return text;
+}
+
+// A folder with a calibration (cal.json), its spots (spots.csv), a
+// calibration session (slices.csv) and a design (design.json), all from the
+// prototype example.
+class HostileInput : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    shared_ = new TempDir();
+    const std::string design = kExamples + "/prototype_design.json";
+    ASSERT_EQ(Simulate("calibration --design " + design + " --out " + shared_->File("cal.json"))
+                  .exit_code,
+              0);
+    ASSERT_EQ(Simulate("spots --design " + design + " --out " + shared_->File("spots.csv"))
+                  .exit_code,
+              0);
+    ASSERT_EQ(Simulate("slices --design " + design + " --depths 750:65:1335 --out " +
+                       shared_->File("slices.csv"))
+                  .exit_code,
+              0);
+  }
+  static void TearDownTestSuite() {
+    delete shared_;
+    shared_ = nullptr;
+  }
+  void SetUp() override {
+    for (const char* name : {"cal.json", "spots.csv", "slices.csv"}) {
+      dir_.Write(name, ReadAll(shared_->File(name)));
+    }
+    dir_.Write("design.json", ReadAll(kExamples + "/prototype_design.json"));
+  }
+
+  // Runs `run` and checks what every refusal shares: `exit_code`, one line on
+  // stderr starting "<tool>: " and containing every `parts`, nothing on
+  // stdout, no new file in the folder, and done within a second.
+  template <typename Runner>
+  RunResult ExpectRefused(Runner run, const std::string& args, int exit_code,
+                          const std::string& tool, const std::vector<std::string>& parts) {
+    const size_t entries_before = dir_.Entries().size();
+    const auto start = std::chrono::steady_clock::now();
+    RunResult r = run(args);
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    EXPECT_EQ(r.exit_code, exit_code) << args << "\n" << r.err;
+    EXPECT_THAT(r.err, StartsWith(tool + ": ")) << args;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    for (const std::string& part : parts) EXPECT_THAT(r.err, HasSubstr(part)) << args;
+    EXPECT_EQ(r.out, "") << args;
+    EXPECT_EQ(dir_.Entries().size(), entries_before) << args << ": an output was written";
+    EXPECT_LT(seconds, 1.0) << args;
+    return r;
+  }
+  RunResult MeasureRefused(const std::string& args, int code,
+                           const std::vector<std::string>& parts) {
+    return ExpectRefused(Measure, args, code, "opl_measure", parts);
+  }
+  RunResult CalibrateRefused(const std::string& args, int code,
+                             const std::vector<std::string>& parts) {
+    return ExpectRefused(Calibrate, args, code, "opl_calibrate", parts);
+  }
+  RunResult SimulateRefused(const std::string& args, int code,
+                            const std::vector<std::string>& parts) {
+    return ExpectRefused(Simulate, args, code, "opl_simulate", parts);
+  }
+  std::string F(const std::string& name) const { return dir_.File(name); }
+
+  static TempDir* shared_;
+  TempDir dir_;
+};
+
+TempDir* HostileInput::shared_ = nullptr;
+
+// 1. beams_per_side beyond the limit: n^2 allocations and int overflow.
+TEST_F(HostileInput, HugeGridsAreRefusedEverywhere) {
+  for (const std::string n : {"203", "46341", "100001"}) {
+    dir_.Write("big_cal.json", ReplaceFirst(ReadAll(F("cal.json")), "\"beams_per_side\": 11",
+                                            "\"beams_per_side\": " + n));
+    MeasureRefused("--calibration " + F("big_cal.json") + " --spots " + F("spots.csv") +
+                       " --json",
+                   3,
+                   {F("big_cal.json") + ": sources[0].beams_per_side: must be odd and in [3, 201], "
+                                        "got " + n});
+    dir_.Write("big_design.json", ReplaceFirst(ReadAll(F("design.json")), "\"beams_per_side\": 11",
+                                               "\"beams_per_side\": " + n));
+    SimulateRefused("calibration --design " + F("big_design.json") + " --out " + F("out.json"), 3,
+                    {F("big_design.json") +
+                     ": sources[0].beams_per_side: must be odd and in [3, 201], got " + n});
+    CalibrateRefused("--spots " + F("slices.csv") + " --out " + F("out.json") +
+                         " --beams-per-side " + n,
+                     2, {"--beams-per-side", "must be odd and in [3, 201], got " + n});
+  }
+  CalibrateRefused("--spots " + F("slices.csv") + " --out " + F("out.json") +
+                       " --beams-per-side 11x",
+                   2, {"--beams-per-side", "not an integer"});
+  // A beam id beyond 201^2 in a session: no grid inferred from it.
+  dir_.Write("big_id.csv",
+             ReplaceFirst(ReadAll(F("slices.csv")), "\nA,1,", "\nA,2147483647,"));
+  CalibrateRefused("--spots " + F("big_id.csv") + " --out " + F("out.json"), 3,
+                   {"beam id 2147483647 is beyond the largest grid (201 x 201 = 40401 beams)"});
+}
+
+}  // namespace
+}  // namespace opl

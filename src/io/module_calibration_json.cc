@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include "io/csv.h"
+#include "io/json_reader.h"
 #include "opl/core/format.h"
 #include "opl/geometry/rotation.h"
 #include "opl/io/atomic_file.h"
@@ -336,6 +337,7 @@ std::string JsonMatrix3(const Eigen::Matrix3d& M) {
 
 Result<ModuleCalibration> ParseModuleCalibrationJson(const std::string& text,
                                                      const std::string& name) {
+  OPL_RETURN_IF_ERROR(json_internal::CheckJsonDepth(text, name));
   json doc;
   try {
     doc = json::parse(text);

@@ -133,5 +133,16 @@ TEST_F(HostileInput, HugeGridsAreRefusedEverywhere) {
                    {"beam id 2147483647 is beyond the largest grid (201 x 201 = 40401 beams)"});
 }
 
+// 2. JSON nested deeper than 64 levels (memory quadratic in the depth).
+TEST_F(HostileInput, DeeplyNestedJsonIsRefusedWithItsLine) {
+  const std::string deep = "{\n\"a\": " + std::string(80000, '[');
+  dir_.Write("deep.json", deep);
+  const std::string where = F("deep.json") + ":2:69: invalid JSON: nested deeper than 64 levels";
+  SimulateRefused("calibration --design " + F("deep.json") + " --out " + F("out.json"), 3,
+                  {where});
+  MeasureRefused("--calibration " + F("deep.json") + " --spots " + F("spots.csv"), 3, {where});
+  SimulateRefused("images --scene " + F("deep.json") + " --out " + F("shots"), 3, {where});
+}
+
 }  // namespace
 }  // namespace opl

@@ -271,6 +271,14 @@ TEST(ModuleCalibrationJson, ErrorsNameFileAndFieldPath) {
   EXPECT_EQ(ErrorOf("\"sources\": [", "\"sourcez\": ["), "cal.json: sources: missing");
 }
 
+TEST(ModuleCalibrationJson, NestingIsCappedAt64Levels) {
+  // Issue 19: 80 KB of '[' took GBs; refused at the bracket opening level 65.
+  Result<ModuleCalibration> r = ParseModuleCalibrationJson("\n" + std::string(80000, '['), "c.json");
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().code(), StatusCode::kParseError);
+  EXPECT_EQ(r.status().message(), "c.json:2:65: invalid JSON: nested deeper than 64 levels");
+}
+
 TEST(ModuleCalibrationJson, SyntaxErrorsGiveLineAndColumn) {
   Result<ModuleCalibration> r =
       ParseModuleCalibrationJson("{\n  \"format\": \"opl.module_calibration\",\n  oops\n}", "c.json");

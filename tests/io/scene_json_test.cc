@@ -47,6 +47,13 @@ std::string Message(const std::string& text) {
   return r.ok() ? std::string("OK") : r.status().message();
 }
 
+TEST(SceneJson, NestingIsCappedAt64Levels) {
+  // Issue 19: an 80 KB file of '[' took 2.4 GB.
+  EXPECT_EQ(Message(std::string(80000, '[')), "s.json:1:65: invalid JSON: nested deeper than 64 levels");
+  EXPECT_EQ(Message(R"({"format": "opl.scene", "a": )" + std::string(70, '{')),
+            "s.json:1:93: invalid JSON: nested deeper than 64 levels");
+}
+
 TEST(SceneJson, ReadsTheSmallExample) {
   Result<Scene> scene = ReadSceneJson(ExamplePath("scene_small.json"));
   ASSERT_TRUE(scene.ok()) << scene.status().message();

@@ -285,6 +285,17 @@ TEST(ModuleDesignJson, InvalidJsonNonFiniteDuplicateKeysAndIo) {
               "design.json: sources[1].origin_mm: duplicate key (each field may appear once)");
   ExpectError(Replace(Doc(kTwo, kPlane), R"("version": 1)", R"("version": 1, "version": 1)"),
               "design.json: version: duplicate key (each field may appear once)");
+  // Issue 19: nesting is capped at 64 levels (80 KB of '[' took 2.4 GB), refused
+  // at the bracket opening level 65; brackets inside strings do not count.
+  ExpectError(std::string(80000, '['),
+              "design.json:1:65: invalid JSON: nested deeper than 64 levels");
+  ExpectError(R"({"format": "opl.module_design", "version": 1, "x": )" + std::string(63, '[') +
+                  std::string(63, ']') + "}",
+              "design.json: x: unknown field (allowed here: description, format, "
+              "noise_frame_rotation_xyz_rad, sources, spot_noise_mm, surface, version)");  // 64 levels: parsed
+  ExpectError("{\"format\": \"" + std::string(100, '[') + "\\\"\",\n\"a\": " +
+                  std::string(64, '{') + "\"b\": 1" + std::string(64, '}') + "}",
+              "design.json:2:69: invalid JSON: nested deeper than 64 levels");
 
   const Result<ModuleDesign> missing = ReadModuleDesignJson("/nonexistent/design.json");
   ASSERT_FALSE(missing.ok());

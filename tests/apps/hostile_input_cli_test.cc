@@ -144,5 +144,16 @@ TEST_F(HostileInput, DeeplyNestedJsonIsRefusedWithItsLine) {
   SimulateRefused("images --scene " + F("deep.json") + " --out " + F("shots"), 3, {where});
 }
 
+// 3. A header of 100k columns (the duplicate check was quadratic).
+TEST_F(HostileInput, WideCsvHeadersAreCheckedAtOnce) {
+  std::string header = "source,beam,x,y,z";
+  for (int i = 0; i < 100000; ++i) header += ",c" + std::to_string(i);
+  dir_.Write("wide.csv", header + ",x\nA,1,1,2,3\n");
+  MeasureRefused("--calibration " + F("cal.json") + " --spots " + F("wide.csv"), 3,
+                 {F("wide.csv") + ":1: duplicate column 'x'"});
+  CalibrateRefused("--spots " + F("wide.csv") + " --out " + F("out.json"), 3,
+                   {F("wide.csv") + ":1: duplicate column 'x'"});
+}
+
 }  // namespace
 }  // namespace opl

@@ -4,6 +4,7 @@
 // range), ONE line on stderr naming the file (and line or field) or the
 // option, nothing on stdout, and no output file (nor a temporary one) left.
 #include <chrono>
+#include <filesystem>
 #include <string>
 
 #include <gmock/gmock.h>
@@ -153,6 +154,29 @@ TEST_F(HostileInput, WideCsvHeadersAreCheckedAtOnce) {
                  {F("wide.csv") + ":1: duplicate column 'x'"});
   CalibrateRefused("--spots " + F("wide.csv") + " --out " + F("out.json"), 3,
                    {F("wide.csv") + ":1: duplicate column 'x'"});
+}
+
+// 4. An image whose header claims 100000 x 100000 pixels (uncaught OpenCV
+// exception, exit 1).
+TEST_F(HostileInput, HugeImageHeadersAreRefusedBeforeDecoding) {
+  std::string png = std::string("\x89PNG\r\n\x1a\n", 8) + std::string("\0\0\0\x0dIHDR", 8) +
+                    std::string("\0\x01\x86\xa0\0\x01\x86\xa0\x08\x02\0\0\0", 13);
+  png += std::string(60 - png.size(), '\0');
+  std::filesystem::create_directories(F("shots"));
+  for (const char* cam : {"cam0", "cam1", "cam2", "cam3"}) {
+    for (const char* laser : {"A", "B"}) {
+      dir_.Write(std::string("shots/") + cam + "_" + laser + ".png", png);
+    }
+  }
+  ASSERT_EQ(Simulate("calibration --design " + kExamples + "/scene_small_module.json --out " +
+                     F("scene_cal.json"))
+                .exit_code,
+            0);
+  MeasureRefused("--calibration " + F("scene_cal.json") + " --images " + F("shots") +
+                     " --scene " + kExamples + "/scene_small.json --spots-out " + F("out.csv"),
+                 3,
+                 {"_A.png: 100000 x 100000 pixels is beyond the limit of 32768 pixels a side and "
+                  "160 megapixels"});
 }
 
 }  // namespace

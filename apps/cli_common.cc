@@ -1,6 +1,10 @@
 #include "cli_common.h"
 
+#include <algorithm>
+#include <charconv>
+#include <cstdint>
 #include <cstdio>
+#include <limits>
 #include <exception>
 #include <iostream>
 #include <string>
@@ -8,6 +12,7 @@
 #include <glog/logging.h>
 
 #include "opl/model/beam_pattern.h"
+#include "opl/uncertainty/monte_carlo.h"
 
 namespace opl {
 namespace cli {
@@ -74,6 +79,38 @@ CLI::Validator BeamsPerSideValidator() {
         return BeamsPerSideProblem(n);
       },
       "ODD N IN [3, " + std::to_string(kMaxBeamsPerSide) + "]");
+}
+
+CLI::Validator SeedValidator() {
+  return CLI::Validator(
+      [](std::string& value) -> std::string {
+        uint64_t seed = 0;
+        const char* end = value.data() + value.size();
+        const bool digits = !value.empty() && std::all_of(value.begin(), value.end(), [](char c) {
+          return c >= '0' && c <= '9';
+        });
+        const auto [ptr, ec] = std::from_chars(value.data(), end, seed);
+        if (digits && ec == std::errc() && ptr == end) return "";
+        return "not a seed in 0.." + std::to_string(std::numeric_limits<uint64_t>::max()) +
+               ": '" + value + "'";
+      },
+      "0..2^64-1");
+}
+
+CLI::Validator MonteCarloIterationsValidator() {
+  return CLI::Validator(
+      [](std::string& value) -> std::string {
+        long long m = 0;
+        const char* end = value.data() + value.size();
+        const auto [ptr, ec] = std::from_chars(value.data(), end, m);
+        if (ec == std::errc::result_out_of_range || (ec == std::errc() && ptr == end &&
+                                                     m > kMaxMonteCarloIterations)) {
+          return "at most " + std::to_string(kMaxMonteCarloIterations) +
+                 " iterations (docs/uncertainty.md), got " + value;
+        }
+        return "";  // not a number: CLI11's own error; < 1: the tool's
+      },
+      "");
 }
 
 void QuietSolverLogging(const std::string& tool) {

@@ -50,6 +50,16 @@ std::optional<int> ParseCommandLine(CLI::App& app, int argc, char** argv);
 // (exit 2) "--beams-per-side: must be odd and in [3, 201], got 100001".
 CLI::Validator BeamsPerSideValidator();
 
+// CLI11 check of a --seed: decimal digits only, at most 2^64 - 1 (CLI11 alone
+// took "-1" and anything beyond 2^64 - 1 as 2^64 - 1); else a usage error
+// "--seed: not a seed in 0..18446744073709551615: '-1'".
+CLI::Validator SeedValidator();
+
+// CLI11 check of an --iterations: an integer in [1, kMaxMonteCarloIterations]
+// (uncertainty/monte_carlo.h); beyond, a usage error naming the option.
+// (0 and negative values are left to the tool, which refuses them.)
+CLI::Validator MonteCarloIterationsValidator();
+
 // Ceres reports through glog (warnings such as "Linear solver failure"):
 // silenced in every tool, whose own messages say what failed.
 // QuietSolverLogging (called by RunTool) initialises glog logging to stderr

@@ -215,6 +215,13 @@ Result<DesignSweep> RunDesignSweep(const ModuleDesign& base, SweepParameter para
   if (values.empty()) return Status::InvalidArgument("no values to sweep");
   DesignSweep sweep;
   sweep.parameter = parameter;
+  // The progress counts every trial of the sweep in an int.
+  if (static_cast<long long>(values.size()) * options.iterations >
+      std::numeric_limits<int>::max()) {
+    return Status::InvalidArgument(std::to_string(values.size()) + " values of " +
+                                   std::to_string(options.iterations) +
+                                   " iterations each are more than 2^31 - 1 trials in all");
+  }
   const int total = static_cast<int>(values.size()) * options.iterations;
   for (size_t i = 0; i < values.size(); ++i) {
     const std::string where = std::string(SweepParameterName(parameter)) + " = " +

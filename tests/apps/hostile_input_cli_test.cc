@@ -179,5 +179,40 @@ TEST_F(HostileInput, HugeImageHeadersAreRefusedBeforeDecoding) {
                   "160 megapixels"});
 }
 
+// 5. Monte Carlo iterations beyond the limit (bad_alloc after reserving).
+TEST_F(HostileInput, MonteCarloIterationsAreBounded) {
+  const std::string design = " --design " + F("design.json");
+  SimulateRefused("mc" + design + " --iterations 2000000000", 2,
+                  {"--iterations: at most 10000000 iterations", "got 2000000000"});
+  SimulateRefused("mc" + design + " --iterations 99999999999999999999", 2, {"--iterations"});
+  SimulateRefused("mc" + design + " --calibration --iterations 10000001", 2,
+                  {"--iterations: at most 10000000 iterations", "got 10000001"});
+  SimulateRefused("sweep" + design + " --param noise_mm --values 0.1,0.2 --out " +
+                      F("sweep.csv") + " --iterations 2000000000",
+                  2, {"--iterations: at most 10000000 iterations"});
+}
+
+// 9. Seeds out of 0..2^64-1 were taken as 2^64 - 1.
+TEST_F(HostileInput, SeedsOutOfRangeAreUsageErrors) {
+  const std::string design = " --design " + F("design.json");
+  for (const std::string seed : {"-1", "18446744073709551616", "99999999999999999999999", "1e3",
+                                 "0x10", "+5", "' 7'"}) {
+    SimulateRefused("spots" + design + " --out " + F("s.csv") + " --seed " + seed, 2,
+                    {"--seed: not a seed in 0..18446744073709551615"});
+    SimulateRefused("mc" + design + " --iterations 10 --seed " + seed, 2, {"--seed"});
+    SimulateRefused("sweep" + design + " --param noise_mm --values 0.1 --out " + F("w.csv") +
+                        " --seed " + seed,
+                    2, {"--seed"});
+    SimulateRefused("slices" + design + " --out " + F("s.csv") + " --seed " + seed, 2,
+                    {"--seed"});
+  }
+  // The whole range is still accepted.
+  for (const std::string seed : {"0", "18446744073709551615"}) {
+    EXPECT_EQ(Simulate("spots" + design + " --out " + F("s" + seed + ".csv") + " --seed " + seed)
+                  .exit_code,
+              0);
+  }
+}
+
 }  // namespace
 }  // namespace opl

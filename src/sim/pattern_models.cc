@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <limits>
 #include <map>
@@ -212,6 +213,23 @@ Eigen::Matrix<double, Eigen::Dynamic, 2> GratingDAzElDWavelength(int beams_per_s
 }
 
 Result<BeamPattern> ReadPatternCsv(const std::string& path) {
+  // A regular file of bounded size only: a pattern_file of /dev/zero read
+  // forever (its one "line" never ends).
+  std::error_code ec;
+  const auto status = std::filesystem::status(path, ec);
+  if (ec || !std::filesystem::exists(status)) {
+    return Status::IoError(path + ": cannot open pattern file");
+  }
+  if (!std::filesystem::is_regular_file(status)) {
+    return Status::IoError(path + ": cannot read pattern file: not a regular file");
+  }
+  const auto bytes = std::filesystem::file_size(path, ec);
+  if (ec) return Status::IoError(path + ": cannot open pattern file");
+  if (bytes > static_cast<std::uintmax_t>(kMaxPatternFileBytes)) {
+    return Status::IoError(path + ": cannot read pattern file: " + std::to_string(bytes) +
+                           " bytes, more than the " + std::to_string(kMaxPatternFileBytes) +
+                           " a pattern file may have (201 x 201 beams need a few MB)");
+  }
   std::ifstream in(path);
   if (!in) return Status::IoError(path + ": cannot open pattern file");
   int beams_per_side = 0;

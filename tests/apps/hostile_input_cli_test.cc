@@ -214,5 +214,29 @@ TEST_F(HostileInput, SeedsOutOfRangeAreUsageErrors) {
   }
 }
 
+// 6. A design whose pattern_file is /dev/zero read forever; so did any input
+// naming a device.
+TEST_F(HostileInput, DevicesAreNotReadAsFiles) {
+  std::string design = ReadAll(F("design.json"));
+  design = ReplaceFirst(design, R"("pattern": "equal_angle",
+      "beams_per_side": 11,
+      "full_angle_deg": 29.0,)",
+                        R"("pattern": "file", "pattern_file": "/dev/zero",)");
+  dir_.Write("zero_design.json", design);
+  SimulateRefused("calibration --design " + F("zero_design.json") + " --out " + F("out.json"), 3,
+                  {F("zero_design.json") + ": sources[0].pattern_file: /dev/zero: cannot read "
+                                           "pattern file: not a regular file"});
+  const std::string not_regular = "/dev/zero: cannot read: not a regular file";
+  SimulateRefused("spots --design /dev/zero --out " + F("out.csv"), 3, {not_regular});
+  MeasureRefused("--calibration /dev/zero --spots " + F("spots.csv"), 3, {not_regular});
+  MeasureRefused("--calibration " + F("cal.json") + " --spots /dev/zero", 3, {not_regular});
+  MeasureRefused("--calibration " + F("cal.json") + " --spots " + F("spots.csv") +
+                     " --apply /dev/zero --out " + F("out.csv"),
+                 3, {not_regular});
+  CalibrateRefused("--spots /dev/urandom --out " + F("out.json"), 3,
+                   {"/dev/urandom: cannot read: not a regular file"});
+  SimulateRefused("images --scene /dev/zero --out " + F("shots"), 3, {not_regular});
+}
+
 }  // namespace
 }  // namespace opl

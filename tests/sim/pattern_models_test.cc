@@ -287,6 +287,16 @@ TEST(PatternCsv, ErrorsNameFileAndLine) {
   ASSERT_FALSE(missing.ok());
   EXPECT_EQ(missing.status().code(), StatusCode::kIoError);
   EXPECT_EQ(missing.status().message(), "/nonexistent/dir/pattern.csv: cannot open pattern file");
+  // Issue 19: a device never ends; a huge file is refused before reading.
+  const Result<BeamPattern> zero = ReadPatternCsv("/dev/zero");
+  ASSERT_FALSE(zero.ok());
+  EXPECT_EQ(zero.status().code(), StatusCode::kIoError);
+  EXPECT_EQ(zero.status().message(), "/dev/zero: cannot read pattern file: not a regular file");
+  const std::string big = WriteFile("big.csv", "# beams_per_side: 3\n");
+  std::filesystem::resize_file(big, kMaxPatternFileBytes + 1);
+  EXPECT_EQ(ReadPatternCsv(big).status().message(),
+            big + ": cannot read pattern file: 16777217 bytes, more than the 16777216 a pattern "
+                  "file may have (201 x 201 beams need a few MB)");
 }
 
 }  // namespace

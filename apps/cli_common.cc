@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <limits>
 #include <exception>
+#include <filesystem>
 #include <iostream>
 #include <string>
 
@@ -111,6 +112,47 @@ CLI::Validator MonteCarloIterationsValidator() {
         return "";  // not a number: CLI11's own error; < 1: the tool's
       },
       "");
+}
+
+bool SameFile(const std::string& a, const std::string& b) {
+  if (a.empty() || b.empty()) return false;
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (fs::exists(a, ec) && fs::exists(b, ec)) {
+    const bool same = fs::equivalent(a, b, ec);
+    if (!ec) return same;
+  }
+  const fs::path ca = fs::weakly_canonical(fs::absolute(a, ec), ec);
+  if (ec) return a == b;
+  const fs::path cb = fs::weakly_canonical(fs::absolute(b, ec), ec);
+  if (ec) return a == b;
+  return ca == cb;
+}
+
+std::optional<int> RefuseOutputsOverInputs(const std::string& tool,
+                                           const std::vector<NamedPath>& inputs,
+                                           const std::vector<NamedPath>& outputs) {
+  for (size_t i = 0; i < outputs.size(); ++i) {
+    const NamedPath& out = outputs[i];
+    if (out.path.empty()) continue;
+    for (const NamedPath& in : inputs) {
+      if (SameFile(out.path, in.path)) {
+        return Fail(tool,
+                    out.option + " '" + out.path + "' is the same file as " + in.option +
+                        ": refusing to overwrite an input (see --help)",
+                    kExitUsage);
+      }
+    }
+    for (size_t j = 0; j < i; ++j) {
+      if (SameFile(out.path, outputs[j].path)) {
+        return Fail(tool,
+                    out.option + " '" + out.path + "' is the same file as " + outputs[j].option +
+                        ": each output needs its own file (see --help)",
+                    kExitUsage);
+      }
+    }
+  }
+  return std::nullopt;
 }
 
 void QuietSolverLogging(const std::string& tool) {

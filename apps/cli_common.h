@@ -6,6 +6,7 @@
 #include <functional>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include <CLI/CLI.hpp>
 
@@ -59,6 +60,25 @@ CLI::Validator SeedValidator();
 // (uncertainty/monte_carlo.h); beyond, a usage error naming the option.
 // (0 and negative values are left to the tool, which refuses them.)
 CLI::Validator MonteCarloIterationsValidator();
+
+// True when `a` and `b` name the same file: by filesystem identity
+// (std::filesystem::equivalent: hard links, symlinks, "./x" and "x") when both
+// exist, else by their weakly canonical paths. Empty paths name nothing.
+bool SameFile(const std::string& a, const std::string& b);
+
+// An option naming a file, e.g. {"--spots", "s.csv"}; an empty path is an
+// option not given.
+struct NamedPath {
+  std::string option;
+  std::string path;
+};
+// Refuses (usage error, exit 2, before anything is read or written) an output
+// naming the same file as an input or as another output:
+//   "--out 's.csv' is the same file as --spots: refusing to overwrite an input"
+// std::nullopt when every output is distinct.
+std::optional<int> RefuseOutputsOverInputs(const std::string& tool,
+                                           const std::vector<NamedPath>& inputs,
+                                           const std::vector<NamedPath>& outputs);
 
 // Ceres reports through glog (warnings such as "Linear solver failure"):
 // silenced in every tool, whose own messages say what failed.

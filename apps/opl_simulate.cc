@@ -833,6 +833,11 @@ int Run(int argc, char** argv) {
   images->footer(opl::cli::HelpFooter(images_examples));
 
   if (std::optional<int> code = opl::cli::ParseCommandLine(app, argc, argv)) return *code;
+  if (std::optional<int> code = opl::cli::RefuseOutputsOverInputs(
+          kTool, {{"--design", args.design_path}, {"--scene", args.scene_path}},
+          {{"--out", args.out_path}, {"--plot", args.plot_path}})) {
+    return *code;
+  }
   if (images->parsed()) {
     if (images_threads->count() == 0) args.threads = 1;
     return ImagesCommand(args);

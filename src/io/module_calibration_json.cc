@@ -2,7 +2,9 @@
 
 #include <cmath>
 #include <limits>
+#include <algorithm>
 #include <map>
+#include <utility>
 
 #include <nlohmann/json.hpp>
 
@@ -402,9 +404,24 @@ Result<ModuleCalibration> ParseModuleCalibrationJson(const std::string& text,
   }
   OPL_ASSIGN_OR_RETURN(separations_member, f.Member(doc, "", "separations"));
   OPL_ASSIGN_OR_RETURN(separations_json, f.Array(*separations_member, "separations"));
+  std::map<std::pair<std::string, std::string>, size_t> pairs;  // {a, b} sorted -> index
   for (size_t i = 0; i < separations_json->size(); ++i) {
-    OPL_ASSIGN_OR_RETURN(sep, ParseSeparation(f, (*separations_json)[i],
-                                              Fields::Index("separations", i), names));
+    const std::string path = Fields::Index("separations", i);
+    OPL_ASSIGN_OR_RETURN(sep, ParseSeparation(f, (*separations_json)[i], path, names));
+    // One calibrated length per pair: a second (even an equal one) is refused,
+    // since a measurement would silently use one of them.
+    const auto key = std::minmax(sep.from, sep.to);
+    if (auto it = pairs.find({key.first, key.second}); it != pairs.end()) {
+      const Separation& first = cal.separations[it->second];
+      const std::string first_path = Fields::Index("separations", it->second);
+      const bool same = first.length_mm == sep.length_mm && first.u_length_mm == sep.u_length_mm;
+      return f.Error(path, sep.from + "-" + sep.to + " " + FormatRoundTrip(sep.length_mm) +
+                               " mm " + (same ? "duplicates " : "contradicts ") + first_path +
+                               ", " + first.from + "-" + first.to + " " +
+                               FormatRoundTrip(first.length_mm) +
+                               " mm (each pair of sources may have one separation)");
+    }
+    pairs[{key.first, key.second}] = i;
     cal.separations.push_back(std::move(sep));
   }
   if (doc.contains("scaling")) {

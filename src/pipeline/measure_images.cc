@@ -88,11 +88,23 @@ std::string ImageMeasureReport::ToJson() const {
   return doc.dump(2) + "\n";
 }
 
+Status CheckSceneHasLasers(const Scene& scene) {
+  for (const SceneShot& shot : scene.shots) {
+    if (!shot.lasers.empty()) return Status::Ok();
+  }
+  return Status::InvalidArgument(
+      "shots: no shot has a laser on (every shot's 'lasers' is empty or absent): there are no "
+      "spots to measure");
+}
+
 Result<ImageMeasureReport> MeasureScaleFromImages(const Scene& scene,
                                                   const std::string& images_dir,
                                                   const ModuleCalibration& calibration,
                                                   const ImageMeasureOptions& options) {
   OPL_RETURN_IF_ERROR(options.Validate());
+  if (Status st = CheckSceneHasLasers(scene); !st.ok()) {
+    return Status::InvalidArgument("scene: " + st.message());
+  }
   Result<FrontEndResult> front_end = RunImageFrontEnd(scene, images_dir, options.front_end);
   if (!front_end.ok()) return front_end.status();
   ImageMeasureReport report;

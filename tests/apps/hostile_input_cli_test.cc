@@ -9,6 +9,7 @@
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include "cli_test_util.h"
 #include "io/temp_dir.h"
@@ -236,6 +237,83 @@ TEST_F(HostileInput, DevicesAreNotReadAsFiles) {
   CalibrateRefused("--spots /dev/urandom --out " + F("out.json"), 3,
                    {"/dev/urandom: cannot read: not a regular file"});
   SimulateRefused("images --scene /dev/zero --out " + F("shots"), 3, {not_regular});
+}
+
+// 7. An output naming an input (opl_calibrate --spots s.csv --out s.csv
+// overwrote its input and exited 0).
+TEST_F(HostileInput, OutputsNamingAnInputAreUsageErrors) {
+  const std::string slices_before = ReadAll(F("slices.csv"));
+  // The same file by another name: "./", "..", a hard link, a symlink.
+  std::filesystem::create_directories(F("sub"));
+  std::filesystem::create_hard_link(F("slices.csv"), F("hard.csv"));
+  std::filesystem::create_symlink(F("slices.csv"), F("sub/link.csv"));
+  for (const std::string& out :
+       {F("slices.csv"), dir_.path() + "/./slices.csv", F("sub") + "/../slices.csv",
+        F("hard.csv"), F("sub/link.csv")}) {
+    CalibrateRefused("--spots " + F("slices.csv") + " --out " + out, 2,
+                     {"--out '" + out + "' is the same file as --spots: refusing to overwrite an "
+                      "input"});
+  }
+  EXPECT_EQ(ReadAll(F("slices.csv")), slices_before);
+  // --report DIR writes DIR/beams.csv and DIR/samples.csv.
+  dir_.Write("sub/samples.csv", slices_before);
+  CalibrateRefused("--spots " + F("sub/samples.csv") + " --out " + F("m.json") + " --report " +
+                       F("sub"),
+                   2, {"--report (samples.csv) '" + F("sub/samples.csv") +
+                       "' is the same file as --spots"});
+  CalibrateRefused("--spots " + F("slices.csv") + " --design " + F("design.json") + " --out " +
+                       F("design.json"),
+                   2, {"--out '" + F("design.json") + "' is the same file as --design"});
+  const std::string cal = " --calibration " + F("cal.json");
+  MeasureRefused(cal + " --spots " + F("spots.csv") + " --identified " + F("cal.json"), 2,
+                 {"--identified '" + F("cal.json") + "' is the same file as --calibration"});
+  MeasureRefused(cal + " --spots " + F("spots.csv") + " --apply " + F("pts.csv") + " --out " +
+                     F("pts.csv"),
+                 2, {"--out '" + F("pts.csv") + "' is the same file as --apply"});
+  MeasureRefused(cal + " --spots " + F("spots.csv") + " --apply " + F("spots.csv") + " --out " +
+                     F("o.csv") + " --identified " + F("o.csv"),
+                 2, {"--identified '" + F("o.csv") + "' is the same file as --out"});
+  SimulateRefused("spots --design " + F("design.json") + " --out " + F("design.json"), 2,
+                  {"--out '" + F("design.json") + "' is the same file as --design"});
+  SimulateRefused("sweep --design " + F("design.json") + " --param noise_mm --values 0.1 --out " +
+                      F("w.csv") + " --plot " + F("design.json"),
+                  2, {"--plot '" + F("design.json") + "' is the same file as --design"});
+  SimulateRefused("images --scene " + F("design.json") + " --out " + F("design.json"), 2,
+                  {"is the same file as --scene"});
+}
+
+// 8. A calibration with the separation A-B twice (55 and 66 mm) measured with
+// one of them; a scene where no shot has a laser on measured nothing, exit 0.
+TEST_F(HostileInput, ContradictorySeparationsAndScenesWithoutLasers) {
+  std::string cal = ReadAll(F("cal.json"));
+  const size_t open = cal.find("\"separations\": [");
+  ASSERT_NE(open, std::string::npos);
+  const size_t start = cal.find('{', open), end = cal.find('}', start);
+  const std::string sep = cal.substr(start, end - start + 1);
+  const std::string doubled = sep + ", " + ReplaceFirst(sep, "\"length_mm\": 55", "\"length_mm\": 66");
+  dir_.Write("twice.json", ReplaceFirst(cal, sep, doubled));
+  MeasureRefused("--calibration " + F("twice.json") + " --spots " + F("spots.csv"), 3,
+                 {F("twice.json") + ": separations[1]: A-B 66", " mm contradicts separations[0], A-B 55",
+                  "(each pair of sources may have one separation)"});
+
+  nlohmann::json scene = nlohmann::json::parse(ReadAll(kExamples + "/scene_small.json"));
+  scene["module"] = kExamples + "/scene_small_module.json";
+  for (nlohmann::json& shot : scene["shots"]) shot["lasers"] = nlohmann::json::array();
+  dir_.Write("dark.json", scene.dump(2));
+  ASSERT_EQ(Simulate("calibration --design " + kExamples + "/scene_small_module.json --out " +
+                     F("scene_cal.json"))
+                .exit_code,
+            0);
+  std::filesystem::create_directories(F("shots"));
+  const std::string no_lasers = F("dark.json") +
+                                ": shots: no shot has a laser on (every shot's 'lasers' is empty or "
+                                "absent): there are no spots to measure";
+  MeasureRefused("--calibration " + F("scene_cal.json") + " --images " + F("shots") +
+                     " --scene " + F("dark.json"),
+                 3, {no_lasers});
+  CalibrateRefused("--images " + F("shots") + " --scene " + F("dark.json") + " --design " +
+                       kExamples + "/scene_small_module.json --out " + F("m.json"),
+                   3, {no_lasers});
 }
 
 }  // namespace

@@ -271,6 +271,22 @@ TEST(ModuleCalibrationJson, ErrorsNameFileAndFieldPath) {
   EXPECT_EQ(ErrorOf("\"sources\": [", "\"sourcez\": ["), "cal.json: sources: missing");
 }
 
+TEST(ModuleCalibrationJson, OneSeparationPerPair) {
+  // Issue 19: A-B listed twice (55 and 66 mm) was read, and a measurement used
+  // one of them silently.
+  const std::string sep = R"({"from": "A", "to": "B", "length_mm": 55, "u_length_mm": 0.001})";
+  EXPECT_EQ(ErrorOf(sep, sep + R"(, {"from": "A", "to": "B", "length_mm": 66, "u_length_mm": 0.001})"),
+            "cal.json: separations[1]: A-B 66 mm contradicts separations[0], A-B 55 mm (each pair "
+            "of sources may have one separation)");
+  EXPECT_EQ(ErrorOf(sep, sep + R"(, {"from": "B", "to": "A", "length_mm": 55, "u_length_mm": 0.001})"),
+            "cal.json: separations[1]: B-A 55 mm duplicates separations[0], A-B 55 mm (each pair "
+            "of sources may have one separation)");
+  ModuleCalibration calibration = testing_support::SyntheticCalibration(3, 5);
+  ASSERT_FALSE(calibration.separations.empty());
+  calibration.separations.push_back(calibration.separations.front());
+  EXPECT_THAT(calibration.Validate().message(), ::testing::HasSubstr("is given twice"));
+}
+
 TEST(ModuleCalibrationJson, NestingIsCappedAt64Levels) {
   // Issue 19: 80 KB of '[' took GBs; refused at the bracket opening level 65.
   Result<ModuleCalibration> r = ParseModuleCalibrationJson("\n" + std::string(80000, '['), "c.json");

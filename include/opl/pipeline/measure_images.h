@@ -91,6 +91,13 @@ struct ImageMeasureReport {
   std::string ToJson() const;
 };
 
+// OK when at least one shot of the scene has a laser on; else
+// InvalidArgument "shots: no shot has a laser on (every shot's 'lasers' is
+// empty or absent): there are no spots to measure". MeasureScaleFromImages and
+// CalibrateFromImages refuse such a scene ("scene: shots: ...") before reading
+// any image; the tools name the scene file.
+Status CheckSceneHasLasers(const Scene& scene);
+
 Result<ImageMeasureReport> MeasureScaleFromImages(
     const Scene& scene, const std::string& images_dir, const ModuleCalibration& calibration,
     const ImageMeasureOptions& options = ImageMeasureOptions());

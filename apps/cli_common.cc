@@ -4,10 +4,10 @@
 #include <charconv>
 #include <cstdint>
 #include <cstdio>
-#include <limits>
 #include <exception>
 #include <filesystem>
 #include <iostream>
+#include <limits>
 #include <string>
 
 #include <glog/logging.h>
@@ -23,7 +23,8 @@ std::string HelpFooter(const std::string& examples) {
          "\nExit codes:\n"
          "  0  success\n"
          "  1  internal error (a bug; please report it)\n"
-         "  2  usage error (unknown or missing option, option value not of its type)\n"
+         "  2  usage error (unknown or missing option, option value not of its type\n"
+         "     or out of its range, an output naming an input)\n"
          "  3  bad input (file unreadable or malformed, invalid value); the message\n"
          "     names the file and line or field\n"
          "  4  no solution (valid data that do not determine a pose or a scale)\n"

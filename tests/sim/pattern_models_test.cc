@@ -203,6 +203,9 @@ TEST(PatternParameters, InvalidGiveEmptyPatternsAndNamedErrors) {
   EXPECT_EQ(BeamPattern::Create(46341, {Beam{1, 0.0, 0.0, std::nullopt}}).status().message(),
             "beams_per_side must be odd and in [3, 201], got 46341");
   EXPECT_TRUE(BeamPattern::Create(201, {Beam{40401, 0.0, 0.0, std::nullopt}}).ok());
+  EXPECT_EQ(BeamPattern(201, {}).central_beam_id(), 20201);
+  EXPECT_EQ(BeamPattern(100001, {}).central_beam_id(), 0);  // was 705132705 (overflow)
+  EXPECT_EQ(BeamPattern(100001, {Beam{1, 0.0, 0.0, std::nullopt}}).Find(1), nullptr);
   st = CheckPatternParameters(PatternModel::kGrating, 11, 95 * kDeg, 658);
   EXPECT_NE(st.message().find("< 90 deg"), std::string::npos) << st.message();
   EXPECT_NE(st.message().find("got 95 deg"), std::string::npos) << st.message();

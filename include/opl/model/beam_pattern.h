@@ -60,8 +60,13 @@ class BeamPattern {
   Status Validate() const;
 
   int beams_per_side() const { return beams_per_side_; }
-  // Of a valid pattern (n <= kMaxBeamsPerSide: no overflow).
-  int central_beam_id() const { return (beams_per_side_ * beams_per_side_ + 1) / 2; }
+  // 0 when n is outside [1, kMaxBeamsPerSide] (an invalid pattern): n^2 never
+  // overflows.
+  int central_beam_id() const {
+    return beams_per_side_ >= 1 && beams_per_side_ <= kMaxBeamsPerSide
+               ? (beams_per_side_ * beams_per_side_ + 1) / 2
+               : 0;
+  }
   const std::vector<Beam>& beams() const { return beams_; }
   // The beam with this id, or nullptr when the pattern lacks it or the id is out
   // of range.

@@ -1,10 +1,19 @@
 #include "cli_common.h"
 
+#include <algorithm>
+#include <charconv>
+#include <cstdint>
 #include <cstdio>
 #include <exception>
+#include <filesystem>
 #include <iostream>
+#include <limits>
+#include <string>
 
 #include <glog/logging.h>
+
+#include "opl/model/beam_pattern.h"
+#include "opl/uncertainty/monte_carlo.h"
 
 namespace opl {
 namespace cli {
@@ -14,7 +23,8 @@ std::string HelpFooter(const std::string& examples) {
          "\nExit codes:\n"
          "  0  success\n"
          "  1  internal error (a bug; please report it)\n"
-         "  2  usage error (unknown or missing option, option value not of its type)\n"
+         "  2  usage error (unknown or missing option, option value not of its type\n"
+         "     or out of its range, an output naming an input)\n"
          "  3  bad input (file unreadable or malformed, invalid value); the message\n"
          "     names the file and line or field\n"
          "  4  no solution (valid data that do not determine a pose or a scale)\n"
@@ -53,6 +63,95 @@ std::optional<int> ParseCommandLine(CLI::App& app, int argc, char** argv) {
     return app.exit(e);
   } catch (const CLI::ParseError& e) {
     return Fail(app.get_name(), std::string(e.what()) + " (see --help)", kExitUsage);
+  }
+  return std::nullopt;
+}
+
+CLI::Validator BeamsPerSideValidator() {
+  return CLI::Validator(
+      [](std::string& value) -> std::string {
+        long long n = 0;
+        size_t used = 0;
+        try {
+          n = std::stoll(value, &used);
+        } catch (const std::exception&) {
+          used = 0;
+        }
+        if (used == 0 || used != value.size()) return "not an integer: '" + value + "'";
+        return BeamsPerSideProblem(n);
+      },
+      "ODD N IN [3, " + std::to_string(kMaxBeamsPerSide) + "]");
+}
+
+CLI::Validator SeedValidator() {
+  return CLI::Validator(
+      [](std::string& value) -> std::string {
+        uint64_t seed = 0;
+        const char* end = value.data() + value.size();
+        const bool digits = !value.empty() && std::all_of(value.begin(), value.end(), [](char c) {
+          return c >= '0' && c <= '9';
+        });
+        const auto [ptr, ec] = std::from_chars(value.data(), end, seed);
+        if (digits && ec == std::errc() && ptr == end) return "";
+        return "not a seed in 0.." + std::to_string(std::numeric_limits<uint64_t>::max()) +
+               ": '" + value + "'";
+      },
+      "0..2^64-1");
+}
+
+CLI::Validator MonteCarloIterationsValidator() {
+  return CLI::Validator(
+      [](std::string& value) -> std::string {
+        long long m = 0;
+        const char* end = value.data() + value.size();
+        const auto [ptr, ec] = std::from_chars(value.data(), end, m);
+        if (ec == std::errc::result_out_of_range || (ec == std::errc() && ptr == end &&
+                                                     m > kMaxMonteCarloIterations)) {
+          return "at most " + std::to_string(kMaxMonteCarloIterations) +
+                 " iterations (docs/uncertainty.md), got " + value;
+        }
+        return "";  // not a number: CLI11's own error; < 1: the tool's
+      },
+      "");
+}
+
+bool SameFile(const std::string& a, const std::string& b) {
+  if (a.empty() || b.empty()) return false;
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (fs::exists(a, ec) && fs::exists(b, ec)) {
+    const bool same = fs::equivalent(a, b, ec);
+    if (!ec) return same;
+  }
+  const fs::path ca = fs::weakly_canonical(fs::absolute(a, ec), ec);
+  if (ec) return a == b;
+  const fs::path cb = fs::weakly_canonical(fs::absolute(b, ec), ec);
+  if (ec) return a == b;
+  return ca == cb;
+}
+
+std::optional<int> RefuseOutputsOverInputs(const std::string& tool,
+                                           const std::vector<NamedPath>& inputs,
+                                           const std::vector<NamedPath>& outputs) {
+  for (size_t i = 0; i < outputs.size(); ++i) {
+    const NamedPath& out = outputs[i];
+    if (out.path.empty()) continue;
+    for (const NamedPath& in : inputs) {
+      if (SameFile(out.path, in.path)) {
+        return Fail(tool,
+                    out.option + " '" + out.path + "' is the same file as " + in.option +
+                        ": refusing to overwrite an input (see --help)",
+                    kExitUsage);
+      }
+    }
+    for (size_t j = 0; j < i; ++j) {
+      if (SameFile(out.path, outputs[j].path)) {
+        return Fail(tool,
+                    out.option + " '" + out.path + "' is the same file as " + outputs[j].option +
+                        ": each output needs its own file (see --help)",
+                    kExitUsage);
+      }
+    }
   }
   return std::nullopt;
 }

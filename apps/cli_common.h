@@ -6,6 +6,7 @@
 #include <functional>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include <CLI/CLI.hpp>
 
@@ -44,6 +45,40 @@ int FailWrite(const std::string& tool, const Status& status);
 // the exit code to return now: 0 after --help (printed on stdout), 2 after a
 // usage error (printed on stderr as "<tool>: <error> (see --help)").
 std::optional<int> ParseCommandLine(CLI::App& app, int argc, char** argv);
+
+// CLI11 check of an option giving the beams per side n of a grid: an integer,
+// odd, in [3, kMaxBeamsPerSide] (model/beam_pattern.h); else a usage error
+// (exit 2) "--beams-per-side: must be odd and in [3, 201], got 100001".
+CLI::Validator BeamsPerSideValidator();
+
+// CLI11 check of a --seed: decimal digits only, at most 2^64 - 1 (CLI11 alone
+// took "-1" and anything beyond 2^64 - 1 as 2^64 - 1); else a usage error
+// "--seed: not a seed in 0..18446744073709551615: '-1'".
+CLI::Validator SeedValidator();
+
+// CLI11 check of an --iterations: an integer in [1, kMaxMonteCarloIterations]
+// (uncertainty/monte_carlo.h); beyond, a usage error naming the option.
+// (0 and negative values are left to the tool, which refuses them.)
+CLI::Validator MonteCarloIterationsValidator();
+
+// True when `a` and `b` name the same file: by filesystem identity
+// (std::filesystem::equivalent: hard links, symlinks, "./x" and "x") when both
+// exist, else by their weakly canonical paths. Empty paths name nothing.
+bool SameFile(const std::string& a, const std::string& b);
+
+// An option naming a file, e.g. {"--spots", "s.csv"}; an empty path is an
+// option not given.
+struct NamedPath {
+  std::string option;
+  std::string path;
+};
+// Refuses (usage error, exit 2, before anything is read or written) an output
+// naming the same file as an input or as another output:
+//   "--out 's.csv' is the same file as --spots: refusing to overwrite an input"
+// std::nullopt when every output is distinct.
+std::optional<int> RefuseOutputsOverInputs(const std::string& tool,
+                                           const std::vector<NamedPath>& inputs,
+                                           const std::vector<NamedPath>& outputs);
 
 // Ceres reports through glog (warnings such as "Linear solver failure"):
 // silenced in every tool, whose own messages say what failed.

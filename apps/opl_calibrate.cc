@@ -17,6 +17,7 @@
 #include "opl/io/module_design_json.h"
 #include "opl/io/scene_json.h"
 #include "opl/pipeline/calibrate_images.h"
+#include "opl/pipeline/measure_images.h"
 #include "opl/sim/module_design.h"
 #include "opl/io/atomic_file.h"
 #include "opl/io/module_calibration_json.h"
@@ -156,6 +157,9 @@ int RunImages(const Args& args) {
   }
   Result<Scene> scene = ReadSceneJson(args.scene_path);
   if (!scene.ok()) return cli::FailInput(kTool, scene.status());
+  if (Status st = CheckSceneHasLasers(*scene); !st.ok()) {
+    return cli::Fail(kTool, args.scene_path + ": " + st.message(), cli::kExitBadInput);
+  }
   Result<ModuleDesign> design = ReadModuleDesignJson(args.design_path);
   if (!design.ok()) return cli::FailInput(kTool, design.status());
   Result<ModuleCalibration> nominal = ExactCalibration(*design);
@@ -245,8 +249,9 @@ int Run(int argc, char** argv) {
                  "missing; files written atomically)")
       ->type_name("DIR");
   app.add_option("--beams-per-side", args.beams_per_side,
-                 "n of the n x n grids (odd >= 3); default: the smallest odd n with n^2 >= the\n"
-                 "largest beam id of each source")
+                 "n of the n x n grids (odd, 3 to 201); default: the smallest odd n with\n"
+                 "n^2 >= the largest beam id of each source")
+      ->check(cli::BeamsPerSideValidator())
       ->type_name("N");
   app.add_flag("--allow-extra-columns", args.allow_extra_columns,
                "Ignore unknown columns of the spots CSV instead of refusing them");
@@ -290,6 +295,24 @@ int Run(int argc, char** argv) {
       "  opl_calibrate --images session/ --scene session.json --design design.json \\\n"
       "      --out module.json\n"));
   if (std::optional<int> code = cli::ParseCommandLine(app, argc, argv)) return *code;
+  {
+    // --report writes beams.csv and samples.csv (and PNGs) into its folder.
+    const auto in_report = [&args](const char* name) {
+      return args.report_dir.empty() ? std::string()
+                                     : (std::filesystem::path(args.report_dir) / name).string();
+    };
+    if (std::optional<int> code = cli::RefuseOutputsOverInputs(
+            kTool,
+            {{"--spots", args.spots.path},
+             {"--design", args.design_path},
+             {"--targets", args.targets_path},
+             {"--scene", args.scene_path}},
+            {{"--out", args.out_path},
+             {"--report (beams.csv)", in_report("beams.csv")},
+             {"--report (samples.csv)", in_report("samples.csv")}})) {
+      return *code;
+    }
+  }
   if (args.image_run.verbose) cli::ShowSolverLogging();
   if (args.spots.path.empty() == args.images_dir.empty()) {
     return cli::Fail(kTool, "give either --spots or --images (with --scene) (see --help)",

@@ -55,6 +55,9 @@ int RunImages(const Args& args) {
   if (!calibration.ok()) return cli::FailInput(kTool, calibration.status());
   Result<Scene> scene = ReadSceneJson(args.scene_path);
   if (!scene.ok()) return cli::FailInput(kTool, scene.status());
+  if (Status st = CheckSceneHasLasers(*scene); !st.ok()) {
+    return cli::Fail(kTool, args.scene_path + ": " + st.message(), cli::kExitBadInput);
+  }
   std::optional<PointsCsv> points;
   if (!args.apply_path.empty()) {
     Result<PointsCsv> read = PointsCsv::Read(args.apply_path);
@@ -221,6 +224,17 @@ int Run(int argc, char** argv) {
       "      --skip-rows 1 --identified sorted.csv\n"
       "  opl_measure --calibration cal.json --images shots/ --scene scene.json\n"));
   if (std::optional<int> code = opl::cli::ParseCommandLine(app, argc, argv)) return *code;
+  if (std::optional<int> code = cli::RefuseOutputsOverInputs(
+          kTool,
+          {{"--calibration", args.calibration_path},
+           {"--spots", args.spots.path},
+           {"--apply", args.apply_path},
+           {"--scene", args.scene_path}},
+          {{"--out", args.out_path},
+           {"--identified", args.identified_path},
+           {"--spots-out", args.spots_out_path}})) {
+    return *code;
+  }
   if (args.image_run.verbose) cli::ShowSolverLogging();
   if (args.spots.path.empty() == args.images_dir.empty()) {
     return cli::Fail(kTool, "give either --spots or --images (with --scene) (see --help)",

@@ -545,7 +545,9 @@ void AddDesignAndOut(CLI::App* command, Args* args, const std::string& out_help)
 void AddSpotOptions(CLI::App* command, Args* args) {
   command
       ->add_option("--seed", args->spots.seed,
-                   "Seed of every random choice; the same seed gives the same spots")
+                   "Seed of every random choice, 0 to 2^64 - 1; the same seed gives the same\n"
+                   "spots")
+      ->check(opl::cli::SeedValidator())
       ->capture_default_str();
   command
       ->add_option("--missing", args->spots.missing_fraction,
@@ -681,12 +683,15 @@ int Run(int argc, char** argv) {
                  "the measurement scene")
       ->required()
       ->type_name("FILE");
-  mc->add_option("--iterations", args.iterations, "Number of Monte Carlo trials M, >= 1")
+  mc->add_option("--iterations", args.iterations,
+                 "Number of Monte Carlo trials M, 1 to 10000000")
       ->required()
+      ->check(opl::cli::MonteCarloIterationsValidator())
       ->type_name("N");
   mc->add_option("--seed", args.spots.seed,
-                 "Seed; iteration i draws from a seed derived from it and i, so the same seed\n"
-                 "gives the same report whatever --threads")
+                 "Seed, 0 to 2^64 - 1; iteration i draws from a seed derived from it and i, so\n"
+                 "the same seed gives the same report whatever --threads")
+      ->check(opl::cli::SeedValidator())
       ->capture_default_str();
   mc->add_option("--threads", args.threads, "Worker threads, >= 0; 0 = every core")
       ->capture_default_str();
@@ -761,10 +766,14 @@ int Run(int argc, char** argv) {
   sweep->add_flag("--log-y", args.log_y,
                   "Logarithmic uncertainty axes in the plot (a power law is a straight line)");
   args.iterations = 1000;
-  sweep->add_option("--iterations", args.iterations, "Monte Carlo trials per value, >= 1")
+  sweep->add_option("--iterations", args.iterations,
+                    "Monte Carlo trials per value, 1 to 10000000")
+      ->check(opl::cli::MonteCarloIterationsValidator())
       ->capture_default_str()
       ->type_name("N");
-  sweep->add_option("--seed", args.spots.seed, "Seed (the same at every value)")->capture_default_str();
+  sweep->add_option("--seed", args.spots.seed, "Seed, 0 to 2^64 - 1 (the same at every value)")
+      ->check(opl::cli::SeedValidator())
+      ->capture_default_str();
   sweep->add_option("--threads", args.threads, "Worker threads, >= 0; 0 = every core")
       ->capture_default_str();
   sweep->add_option("--weighting", args.weighting, "efficient or unweighted (see `mc`)")
@@ -819,6 +828,11 @@ int Run(int argc, char** argv) {
   images->footer(opl::cli::HelpFooter(images_examples));
 
   if (std::optional<int> code = opl::cli::ParseCommandLine(app, argc, argv)) return *code;
+  if (std::optional<int> code = opl::cli::RefuseOutputsOverInputs(
+          kTool, {{"--design", args.design_path}, {"--scene", args.scene_path}},
+          {{"--out", args.out_path}, {"--plot", args.plot_path}})) {
+    return *code;
+  }
   if (images->parsed()) {
     if (images_threads->count() == 0) args.threads = 1;
     return ImagesCommand(args);

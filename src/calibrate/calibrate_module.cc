@@ -4,6 +4,7 @@
 #include <map>
 
 #include "opl/core/format.h"
+#include "opl/model/beam_pattern.h"
 
 namespace opl {
 
@@ -57,10 +58,11 @@ Result<ModuleCalibrationResult> CalibrateModule(const std::vector<Spot>& spots,
                                    ") differ in number");
   }
   if (spots.empty()) return Status::InvalidArgument("no spots");
-  if (options.beams_per_side &&
-      (*options.beams_per_side < 3 || *options.beams_per_side % 2 == 0)) {
-    return Status::InvalidArgument("beams per side must be odd and >= 3, got " +
-                                   std::to_string(*options.beams_per_side));
+  if (options.beams_per_side) {
+    if (const std::string problem = BeamsPerSideProblem(*options.beams_per_side);
+        !problem.empty()) {
+      return Status::InvalidArgument("beams per side " + problem);
+    }
   }
   double scale = 1.0;
   if (scaling) {
@@ -101,7 +103,15 @@ Result<ModuleCalibrationResult> CalibrateModule(const std::vector<Spot>& spots,
     if (options.beams_per_side) {
       n = *options.beams_per_side;
     } else {
-      while (n * n < max_id[name]) n += 2;
+      // Bounded: n^2 never overflows, and an id beyond the largest grid is refused.
+      while (n < kMaxBeamsPerSide && n * n < max_id[name]) n += 2;
+      if (n * n < max_id[name]) {
+        return Status::InvalidArgument(
+            "source '" + name + "': beam id " + std::to_string(max_id[name]) +
+            " is beyond the largest grid (" + std::to_string(kMaxBeamsPerSide) + " x " +
+            std::to_string(kMaxBeamsPerSide) + " = " +
+            std::to_string(kMaxBeamsPerSide * kMaxBeamsPerSide) + " beams)");
+      }
     }
     Result<SourceCalibrationResult> source =
         CalibrateSource(name, n, by_source[name], options.source);

@@ -15,6 +15,7 @@
 
 #include "calibrate/calibrate_source_internal.h"
 #include "opl/geometry/spherical.h"
+#include "opl/model/beam_pattern.h"
 
 namespace opl {
 namespace calibrate_internal {
@@ -94,9 +95,8 @@ bool FitLine(const std::vector<Eigen::Vector3d>& pts, double min_inlier_mm, Eige
 }  // namespace
 
 Status Calibrator::CheckInput() {
-  if (n_ < 3 || n_ % 2 == 0) {
-    return Error(StatusCode::kInvalidArgument,
-                 "beams_per_side must be odd and >= 3, got " + std::to_string(n_));
+  if (Status st = CheckBeamsPerSide(n_); !st.ok()) {
+    return Error(StatusCode::kInvalidArgument, st.message());
   }
   std::map<int, std::map<int, int>> seen;  // beam -> slice -> sample index
   std::set<int> slices;

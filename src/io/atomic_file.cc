@@ -98,18 +98,38 @@ Status WriteFileAtomically(const std::string& path, const std::string& contents)
   return Status::Ok();
 }
 
-Result<std::string> ReadFileToString(const std::string& path) {
+Result<std::string> ReadFileToString(const std::string& path, long long max_bytes) {
   struct stat st;
   if (::stat(path.c_str(), &st) != 0) {
     return Status::IoError(path + ": cannot open: " + ErrnoText(errno));
   }
   if (S_ISDIR(st.st_mode)) return Status::IoError(path + ": cannot read: is a directory");
+  if (!S_ISREG(st.st_mode)) {
+    return Status::IoError(path + ": cannot read: not a regular file (a device, FIFO or socket)");
+  }
+  auto too_big = [&](long long bytes) {
+    return Status::IoError(path + ": cannot read: " + std::to_string(bytes) +
+                           " bytes, more than the " + std::to_string(max_bytes) +
+                           " an input may have");
+  };
+  if (st.st_size > max_bytes) return too_big(st.st_size);
   std::ifstream in(path, std::ios::binary);
   if (!in) return Status::IoError(path + ": cannot open: " + ErrnoText(errno));
-  std::ostringstream buffer;
-  buffer << in.rdbuf();
+  std::string text(static_cast<size_t>(st.st_size), '\0');
+  in.read(text.data(), static_cast<std::streamsize>(text.size()));
   if (in.bad()) return Status::IoError(path + ": read error");
-  return buffer.str();
+  text.resize(static_cast<size_t>(in.gcount()));
+  // A file that grew since stat: read on, but never past the limit.
+  char chunk[65536];
+  while (in && !in.eof()) {
+    in.read(chunk, sizeof chunk);
+    if (in.bad()) return Status::IoError(path + ": read error");
+    text.append(chunk, static_cast<size_t>(in.gcount()));
+    if (static_cast<long long>(text.size()) > max_bytes) {
+      return too_big(static_cast<long long>(text.size()));
+    }
+  }
+  return text;
 }
 
 }  // namespace opl

@@ -4,6 +4,7 @@
 #include <charconv>
 #include <cmath>
 #include <system_error>
+#include <unordered_set>
 
 namespace opl {
 namespace csv_internal {
@@ -205,17 +206,18 @@ Result<CsvTable> ParseCsv(const std::string& text, const std::string& name) {
   CsvTable table;
   table.header = std::move(records.front());
   const size_t num_columns = table.header.fields.size();
+  const std::string where = name + ":" + std::to_string(table.header.line) + ": ";
+  // Linear in the number of columns (a pairwise check took 4 s for 16k columns).
+  std::unordered_set<std::string> seen;
+  seen.reserve(num_columns);
   for (size_t i = 0; i < num_columns; ++i) {
     const std::string& column = table.header.fields[i];
-    const std::string where = name + ":" + std::to_string(table.header.line) + ": ";
     if (column.empty()) {
       return Status::ParseError(where + "header column " + std::to_string(i + 1) +
                                 " has no name");
     }
-    for (size_t j = 0; j < i; ++j) {
-      if (Lower(table.header.fields[j]) == Lower(column)) {
-        return Status::ParseError(where + "duplicate column '" + column + "'");
-      }
+    if (!seen.insert(Lower(column)).second) {
+      return Status::ParseError(where + "duplicate column '" + column + "'");
     }
   }
   for (size_t r = 1; r < records.size(); ++r) {

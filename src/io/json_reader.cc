@@ -96,7 +96,37 @@ std::string StripNlohmann(const std::string& what) {
 
 }  // namespace
 
+Status CheckJsonDepth(const std::string& text, const std::string& name) {
+  int depth = 0;
+  bool in_string = false;
+  for (size_t i = 0; i < text.size(); ++i) {
+    const char c = text[i];
+    if (in_string) {
+      if (c == '\\') {
+        ++i;  // the escaped character, whatever it is
+      } else if (c == '"') {
+        in_string = false;
+      }
+      continue;
+    }
+    if (c == '"') {
+      in_string = true;
+    } else if (c == '[' || c == '{') {
+      if (++depth > kMaxJsonDepth) {
+        const auto [line, column] = LineColumn(text, i);
+        return Status::ParseError(name + ":" + std::to_string(line) + ":" +
+                                  std::to_string(column) + ": invalid JSON: nested deeper than " +
+                                  std::to_string(kMaxJsonDepth) + " levels");
+      }
+    } else if (c == ']' || c == '}') {
+      --depth;  // unbalanced brackets are left to the parser
+    }
+  }
+  return Status::Ok();
+}
+
 Result<json> JsonReader::ParseText(const std::string& text) const {
+  OPL_RETURN_IF_ERROR(CheckJsonDepth(text, name_));
   json root;
   // nlohmann copies the callback: keep the finder's state behind a shared_ptr.
   auto finder = std::make_shared<DuplicateKeyFinder>();

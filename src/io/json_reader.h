@@ -20,6 +20,16 @@
 namespace opl {
 namespace json_internal {
 
+// The deepest nesting of arrays and objects a JSON input may have (OPL's own
+// documents nest 4 levels; docs/formats.md, "Limits"). nlohmann's DOM and the
+// duplicate-key finder keep per-level state, so an 80 KB file of '[' took GBs.
+constexpr int kMaxJsonDepth = 64;
+
+// OK, or ParseError "<name>:<line>:<column>: invalid JSON: nested deeper than
+// 64 levels" at the bracket opening level 65. A linear scan outside strings,
+// run before parsing (the parser then reports any other syntax error).
+Status CheckJsonDepth(const std::string& text, const std::string& name);
+
 class JsonReader {
  public:
   using json = nlohmann::json;

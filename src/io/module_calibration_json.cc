@@ -2,14 +2,18 @@
 
 #include <cmath>
 #include <limits>
+#include <algorithm>
 #include <map>
+#include <utility>
 
 #include <nlohmann/json.hpp>
 
 #include "io/csv.h"
+#include "io/json_reader.h"
 #include "opl/core/format.h"
 #include "opl/geometry/rotation.h"
 #include "opl/io/atomic_file.h"
+#include "opl/model/beam_pattern.h"
 
 namespace opl {
 namespace {
@@ -199,8 +203,8 @@ Result<SourceCalibration> ParseSource(const Fields& f, const json& src, const st
 
   OPL_ASSIGN_OR_RETURN(n_json, f.Member(src, path, "beams_per_side"));
   OPL_ASSIGN_OR_RETURN(n, f.Int(*n_json, path + ".beams_per_side"));
-  if (n < 3 || n % 2 == 0) {
-    return f.Error(path + ".beams_per_side", "must be odd and >= 3, got " + std::to_string(n));
+  if (const std::string problem = BeamsPerSideProblem(n); !problem.empty()) {
+    return f.Error(path + ".beams_per_side", problem);
   }
 
   OPL_ASSIGN_OR_RETURN(origin_json, f.Member(src, path, "origin_mm"));
@@ -335,6 +339,7 @@ std::string JsonMatrix3(const Eigen::Matrix3d& M) {
 
 Result<ModuleCalibration> ParseModuleCalibrationJson(const std::string& text,
                                                      const std::string& name) {
+  OPL_RETURN_IF_ERROR(json_internal::CheckJsonDepth(text, name));
   json doc;
   try {
     doc = json::parse(text);
@@ -399,9 +404,24 @@ Result<ModuleCalibration> ParseModuleCalibrationJson(const std::string& text,
   }
   OPL_ASSIGN_OR_RETURN(separations_member, f.Member(doc, "", "separations"));
   OPL_ASSIGN_OR_RETURN(separations_json, f.Array(*separations_member, "separations"));
+  std::map<std::pair<std::string, std::string>, size_t> pairs;  // {a, b} sorted -> index
   for (size_t i = 0; i < separations_json->size(); ++i) {
-    OPL_ASSIGN_OR_RETURN(sep, ParseSeparation(f, (*separations_json)[i],
-                                              Fields::Index("separations", i), names));
+    const std::string path = Fields::Index("separations", i);
+    OPL_ASSIGN_OR_RETURN(sep, ParseSeparation(f, (*separations_json)[i], path, names));
+    // One calibrated length per pair: a second (even an equal one) is refused,
+    // since a measurement would silently use one of them.
+    const auto key = std::minmax(sep.from, sep.to);
+    if (auto it = pairs.find({key.first, key.second}); it != pairs.end()) {
+      const Separation& first = cal.separations[it->second];
+      const std::string first_path = Fields::Index("separations", it->second);
+      const bool same = first.length_mm == sep.length_mm && first.u_length_mm == sep.u_length_mm;
+      return f.Error(path, sep.from + "-" + sep.to + " " + FormatRoundTrip(sep.length_mm) +
+                               " mm " + (same ? "duplicates " : "contradicts ") + first_path +
+                               ", " + first.from + "-" + first.to + " " +
+                               FormatRoundTrip(first.length_mm) +
+                               " mm (each pair of sources may have one separation)");
+    }
+    pairs[{key.first, key.second}] = i;
     cal.separations.push_back(std::move(sep));
   }
   if (doc.contains("scaling")) {

@@ -19,6 +19,8 @@
 #include "io/json_reader.h"
 #include "io/module_design_json_internal.h"
 #include "opl/geometry/rotation.h"
+#include "opl/io/atomic_file.h"
+#include "opl/model/beam_pattern.h"
 
 namespace opl {
 namespace {
@@ -141,8 +143,9 @@ class Reader : public json_internal::JsonReader {
     const json* n = Find(s, "beams_per_side");
     if (n != nullptr) {
       OPL_RETURN_IF_ERROR(Integer(*n, path + ".beams_per_side", &source->beams_per_side));
-      if (source->beams_per_side < 3 || source->beams_per_side % 2 == 0) {
-        return Error(path + ".beams_per_side", "must be odd and >= 3, got " + Describe(*n));
+      if (const std::string problem = BeamsPerSideProblem(source->beams_per_side);
+          !problem.empty()) {
+        return Error(path + ".beams_per_side", problem);
       }
     } else if (!from_file) {
       return Error(path + ".beams_per_side", "missing field");
@@ -318,17 +321,10 @@ Result<ModuleDesign> ParseModuleDesignValue(const nlohmann::json& value,
 }
 
 Result<ModuleDesign> ReadModuleDesignJson(const std::string& path) {
-  std::error_code ec;
-  if (std::filesystem::is_directory(path, ec)) {
-    return Status::IoError(path + ": cannot read: is a directory");
-  }
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return Status::IoError(path + ": cannot open: " + std::strerror(errno));
-  std::ostringstream text;
-  text << in.rdbuf();
-  if (in.bad()) return Status::IoError(path + ": read error");
+  Result<std::string> text = ReadFileToString(path);  // regular files, bounded size
+  if (!text.ok()) return text.status();
   const std::string base_dir = std::filesystem::path(path).parent_path().string();
-  return ParseModuleDesignJson(text.str(), path, base_dir);
+  return ParseModuleDesignJson(*text, path, base_dir);
 }
 
 }  // namespace opl

@@ -13,6 +13,7 @@
 #include "opl/core/format.h"
 #include "opl/io/atomic_file.h"
 #include "opl/io/module_design_json.h"
+#include "opl/vision/shot_image.h"
 
 namespace opl {
 namespace {
@@ -184,13 +185,21 @@ class SceneReader : public json_internal::JsonReader {
     CameraIntrinsics& in = camera->intrinsics;
     OPL_RETURN_IF_ERROR(RequiredInteger(c, path, "width_px", &in.width_px));
     OPL_RETURN_IF_ERROR(RequiredInteger(c, path, "height_px", &in.height_px));
-    if (in.width_px < 1 || in.width_px > 100000) {
+    // The image size limit of vision/shot_image.h: a camera of 100000 x 100000
+    // pixels made opl_simulate images allocate 10^10 pixels a frame.
+    const std::string side = std::to_string(kMaxImageSidePx);
+    if (in.width_px < 1 || in.width_px > kMaxImageSidePx) {
       return Error(Join(path, "width_px"),
-                   "must be in [1, 100000], got " + std::to_string(in.width_px));
+                   "must be in [1, " + side + "], got " + std::to_string(in.width_px));
     }
-    if (in.height_px < 1 || in.height_px > 100000) {
+    if (in.height_px < 1 || in.height_px > kMaxImageSidePx) {
       return Error(Join(path, "height_px"),
-                   "must be in [1, 100000], got " + std::to_string(in.height_px));
+                   "must be in [1, " + side + "], got " + std::to_string(in.height_px));
+    }
+    if (static_cast<long long>(in.width_px) * in.height_px > kMaxImagePixels) {
+      return Error(path, std::to_string(in.width_px) + " x " + std::to_string(in.height_px) +
+                             " pixels is beyond the limit of " +
+                             std::to_string(kMaxImagePixels / 1000000) + " megapixels");
     }
     const json* v = nullptr;
     const std::string ipath = Join(path, "intrinsics");

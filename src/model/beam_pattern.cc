@@ -12,11 +12,26 @@ namespace opl {
 
 Eigen::Vector3d Beam::DirectionInSource() const { return DirectionFromAzElRad(az_rad, el_rad); }
 
+std::string BeamsPerSideProblem(long long n) {
+  if (n >= 3 && n <= kMaxBeamsPerSide && n % 2 != 0) return "";
+  return "must be odd and in [3, " + std::to_string(kMaxBeamsPerSide) + "], got " +
+         std::to_string(n);
+}
+
+Status CheckBeamsPerSide(int beams_per_side) {
+  const std::string problem = BeamsPerSideProblem(beams_per_side);
+  if (problem.empty()) return Status::Ok();
+  return Status::InvalidArgument("beams_per_side " + problem);
+}
+
 BeamPattern::BeamPattern(int beams_per_side, std::vector<Beam> beams)
     : beams_per_side_(beams_per_side), beams_(std::move(beams)) {
   std::sort(beams_.begin(), beams_.end(),
             [](const Beam& a, const Beam& b) { return a.id < b.id; });
-  const int n2 = beams_per_side_ > 0 ? beams_per_side_ * beams_per_side_ : 0;
+  // An invalid n (Validate refuses it) gets no index rather than a huge one.
+  const int n2 = beams_per_side_ > 0 && beams_per_side_ <= kMaxBeamsPerSide
+                     ? beams_per_side_ * beams_per_side_
+                     : 0;
   index_by_id_.assign(static_cast<size_t>(n2) + 1, -1);
   directions_.reserve(beams_.size());
   for (const Beam& b : beams_) directions_.push_back(b.DirectionInSource());
@@ -34,10 +49,7 @@ Result<BeamPattern> BeamPattern::Create(int beams_per_side, std::vector<Beam> be
 }
 
 Status BeamPattern::Validate() const {
-  if (beams_per_side_ < 3 || beams_per_side_ % 2 == 0) {
-    return Status::InvalidArgument("beams_per_side must be odd and >= 3, got " +
-                                   std::to_string(beams_per_side_));
-  }
+  OPL_RETURN_IF_ERROR(CheckBeamsPerSide(beams_per_side_));
   const int n2 = beams_per_side_ * beams_per_side_;
   for (size_t i = 0; i < beams_.size(); ++i) {
     const Beam& b = beams_[i];

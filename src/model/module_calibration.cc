@@ -1,7 +1,9 @@
 #include "opl/model/module_calibration.h"
 
+#include <algorithm>
 #include <cmath>
 #include <set>
+#include <utility>
 
 namespace opl {
 
@@ -20,7 +22,13 @@ Status ModuleCalibration::Validate() const {
       return Status::InvalidArgument("source '" + s.name + "': pose is not finite");
     }
   }
+  std::set<std::pair<std::string, std::string>> pairs;
   for (const Separation& sep : separations) {
+    const auto key = std::minmax(sep.from, sep.to);
+    if (!pairs.insert({key.first, key.second}).second) {
+      return Status::InvalidArgument("separation " + sep.from + "-" + sep.to +
+                                     " is given twice (each pair of sources may have one)");
+    }
     if (!names.count(sep.from) || !names.count(sep.to)) {
       return Status::InvalidArgument("separation " + sep.from + "-" + sep.to +
                                      " names an unknown source");

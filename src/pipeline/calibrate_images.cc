@@ -1,4 +1,5 @@
 #include "opl/pipeline/calibrate_images.h"
+#include "opl/pipeline/measure_images.h"
 
 #include <algorithm>
 #include <map>
@@ -47,6 +48,9 @@ Result<ImageCalibrationReport> CalibrateFromImages(const Scene& scene,
   if (!scene.artifact) {
     return Status::InvalidArgument(
         "scene: no 'artifact': a calibration session needs the scale artifact's two tags");
+  }
+  if (Status st = CheckSceneHasLasers(scene); !st.ok()) {
+    return Status::InvalidArgument("scene: " + st.message());
   }
   Result<FrontEndResult> front_end = RunImageFrontEnd(scene, images_dir, options.front_end);
   if (!front_end.ok()) return front_end.status();

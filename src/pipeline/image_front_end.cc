@@ -341,9 +341,8 @@ Status FrontEndRun::Detect() {
   for (int i = 0; i < num_images; ++i) {
     (scene.shots[static_cast<size_t>(i)].lasers.empty() ? dark_shots : lit_shots).push_back(i);
   }
-  if (lit_shots.empty()) {
-    return Status::InvalidArgument("every one of the " + std::to_string(num_images) +
-                                   " shots has \"lasers\": [] (laser off): no shot shows a laser");
+  if (Status st = CheckSceneHasLasers(scene); !st.ok()) {
+    return Status::InvalidArgument("scene: " + st.message());
   }
   std::vector<cv::Mat> dark_images(static_cast<size_t>(num_images));
   const auto read_and_find_tags = [&](int i) -> Result<ShotImage> {
@@ -1168,6 +1167,15 @@ Status FrontEndRun::MoveToSceneFrame() {
 }
 
 }  // namespace
+
+Status CheckSceneHasLasers(const Scene& scene) {
+  for (const SceneShot& shot : scene.shots) {
+    if (!shot.lasers.empty()) return Status::Ok();
+  }
+  return Status::InvalidArgument(
+      "shots: no shot has a laser on (every shot's 'lasers' is empty or absent): there are no "
+      "spots to measure");
+}
 
 Result<FrontEndResult> RunImageFrontEnd(const Scene& scene, const std::string& images_dir,
                                         const FrontEndOptions& options) {

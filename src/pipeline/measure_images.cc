@@ -95,6 +95,9 @@ Result<ImageMeasureReport> MeasureScaleFromImages(const Scene& scene,
                                                   const ModuleCalibration& calibration,
                                                   const ImageMeasureOptions& options) {
   OPL_RETURN_IF_ERROR(options.Validate());
+  if (Status st = CheckSceneHasLasers(scene); !st.ok()) {
+    return Status::InvalidArgument("scene: " + st.message());
+  }
   Result<FrontEndResult> front_end = RunImageFrontEnd(scene, images_dir, options.front_end);
   if (!front_end.ok()) return front_end.status();
   ImageMeasureReport report;

@@ -149,7 +149,7 @@ GridHeatmap PointToRayHeatmap(const SourceCalibrationResult& source) {
   const int n = c.pattern.beams_per_side();
   GridHeatmap h;
   h.beams_per_side = n;
-  h.values.assign(n * n, std::numeric_limits<double>::quiet_NaN());
+  h.values.assign(static_cast<size_t>(n) * static_cast<size_t>(n), std::numeric_limits<double>::quiet_NaN());
   for (const BeamCalibrationQuality& b : source.beams) h.values[b.beam_id - 1] = b.mean_point_to_ray_mm;
   h.title = "Source " + c.name + ": mean point-to-ray distance per beam";
   h.value_label = "mean point-to-ray distance [mm]";

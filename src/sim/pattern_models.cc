@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <limits>
 #include <map>
@@ -102,10 +103,7 @@ const char* PatternModelName(PatternModel model) {
 Status CheckPatternParameters(PatternModel model, int beams_per_side, double full_angle_rad,
                               double wavelength_nm) {
   if (model == PatternModel::kFile) return Status::Ok();
-  if (beams_per_side < 3 || beams_per_side % 2 == 0) {
-    return Status::InvalidArgument("beams_per_side must be odd and >= 3, got " +
-                                   std::to_string(beams_per_side));
-  }
+  OPL_RETURN_IF_ERROR(CheckBeamsPerSide(beams_per_side));
   const double max_rad = model == PatternModel::kGrating ? 0.5 * kPi : kPi;
   if (!(std::isfinite(full_angle_rad) && full_angle_rad > 0.0 && full_angle_rad < max_rad)) {
     return Status::InvalidArgument(
@@ -215,6 +213,23 @@ Eigen::Matrix<double, Eigen::Dynamic, 2> GratingDAzElDWavelength(int beams_per_s
 }
 
 Result<BeamPattern> ReadPatternCsv(const std::string& path) {
+  // A regular file of bounded size only: a pattern_file of /dev/zero read
+  // forever (its one "line" never ends).
+  std::error_code ec;
+  const auto status = std::filesystem::status(path, ec);
+  if (ec || !std::filesystem::exists(status)) {
+    return Status::IoError(path + ": cannot open pattern file");
+  }
+  if (!std::filesystem::is_regular_file(status)) {
+    return Status::IoError(path + ": cannot read pattern file: not a regular file");
+  }
+  const auto bytes = std::filesystem::file_size(path, ec);
+  if (ec) return Status::IoError(path + ": cannot open pattern file");
+  if (bytes > static_cast<std::uintmax_t>(kMaxPatternFileBytes)) {
+    return Status::IoError(path + ": cannot read pattern file: " + std::to_string(bytes) +
+                           " bytes, more than the " + std::to_string(kMaxPatternFileBytes) +
+                           " a pattern file may have (201 x 201 beams need a few MB)");
+  }
   std::ifstream in(path);
   if (!in) return Status::IoError(path + ": cannot open pattern file");
   int beams_per_side = 0;
@@ -249,10 +264,9 @@ Result<BeamPattern> ReadPatternCsv(const std::string& path) {
                                     std::to_string(beams_per_side_line) + ")");
         }
         int n = 0;
-        if (!ParseInt(rest, &n) || n < 3 || n % 2 == 0) {
-          return Status::ParseError(where(line_no) +
-                                    "beams_per_side must be an odd integer >= 3, got '" + rest +
-                                    "'");
+        if (!ParseInt(rest, &n) || !BeamsPerSideProblem(n).empty()) {
+          return Status::ParseError(where(line_no) + "beams_per_side must be an odd integer in [3, " +
+                                    std::to_string(kMaxBeamsPerSide) + "], got '" + rest + "'");
         }
         beams_per_side = n;
         beams_per_side_line = line_no;

@@ -196,6 +196,11 @@ Status CalibrationMonteCarloOptions::Validate() const {
   if (iterations < 1) {
     return Status::InvalidArgument("iterations must be >= 1, got " + std::to_string(iterations));
   }
+  if (iterations > kMaxMonteCarloIterations) {
+    return Status::InvalidArgument("iterations must be at most " +
+                                   std::to_string(kMaxMonteCarloIterations) + ", got " +
+                                   std::to_string(iterations));
+  }
   if (threads < 0) {
     return Status::InvalidArgument("threads must be >= 0 (0: every core), got " +
                                    std::to_string(threads));

@@ -6,6 +6,7 @@
 
 #include "opl/core/format.h"
 #include "opl/core/number_list.h"
+#include "opl/model/beam_pattern.h"
 #include "opl/sim/simulate_slices.h"
 
 namespace opl {
@@ -123,8 +124,10 @@ Result<ModuleDesign> ApplySweepValue(const ModuleDesign& base, SweepParameter pa
       break;
     case SweepParameter::kBeamsPerSide: {
       const double n = std::round(value);
-      if (n != value || n < 3 || std::fmod(n, 2.0) == 0.0 || n > 1001) {
-        return OutOfDomain(parameter, value, "must be an odd integer in [3, 1001]");
+      if (n != value || n < 3 || std::fmod(n, 2.0) == 0.0 || n > kMaxBeamsPerSide) {
+        return OutOfDomain(parameter, value,
+                           "must be an odd integer in [3, " + std::to_string(kMaxBeamsPerSide) +
+                               "]");
       }
       for (SourceDesign& s : d.sources) {
         if (s.pattern == PatternModel::kFile) {
@@ -212,6 +215,13 @@ Result<DesignSweep> RunDesignSweep(const ModuleDesign& base, SweepParameter para
   if (values.empty()) return Status::InvalidArgument("no values to sweep");
   DesignSweep sweep;
   sweep.parameter = parameter;
+  // The progress counts every trial of the sweep in an int.
+  if (static_cast<long long>(values.size()) * options.iterations >
+      std::numeric_limits<int>::max()) {
+    return Status::InvalidArgument(std::to_string(values.size()) + " values of " +
+                                   std::to_string(options.iterations) +
+                                   " iterations each are more than 2^31 - 1 trials in all");
+  }
   const int total = static_cast<int>(values.size()) * options.iterations;
   for (size_t i = 0; i < values.size(); ++i) {
     const std::string where = std::string(SweepParameterName(parameter)) + " = " +

@@ -1,7 +1,9 @@
 #include "opl/vision/shot_image.h"
 
 #include <filesystem>
+#include <algorithm>
 #include <fstream>
+#include <new>
 
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -29,15 +31,81 @@ Result<SpotChannel> ParseSpotChannel(const std::string& name) {
                                  "' is not one of red, green, blue, luma");
 }
 
-Result<ShotImage> ReadShotImage(const std::string& path, SpotChannel channel) {
-  std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec)) {
-    return Status::IoError(path + ": no such image");
+namespace {
+
+// Big-endian unsigned integer of `n` bytes at `p`.
+long long BigEndian(const unsigned char* p, int n) {
+  long long v = 0;
+  for (int i = 0; i < n; ++i) v = (v << 8) | p[i];
+  return v;
+}
+
+// The size a JPEG's first frame header (SOF0..SOF15 but DHT, JPG, DAC)
+// declares, walking the segments from the start of the file.
+std::optional<std::pair<long long, long long>> JpegSize(std::ifstream& in) {
+  in.seekg(2);  // after SOI
+  for (int segment = 0; segment < 10000 && in; ++segment) {
+    int c = in.get();
+    if (c != 0xFF) return std::nullopt;
+    while (c == 0xFF) c = in.get();  // fill bytes
+    if (c == EOF) return std::nullopt;
+    const int marker = c;
+    if (marker == 0x01 || (marker >= 0xD0 && marker <= 0xD8)) continue;  // no length
+    if (marker == 0xD9 || marker == 0xDA) return std::nullopt;  // EOI, SOS: no frame header
+    unsigned char length_bytes[2];
+    if (!in.read(reinterpret_cast<char*>(length_bytes), 2)) return std::nullopt;
+    const long long length = BigEndian(length_bytes, 2);
+    if (length < 2) return std::nullopt;
+    const bool sof = marker >= 0xC0 && marker <= 0xCF && marker != 0xC4 && marker != 0xC8 &&
+                     marker != 0xCC;
+    if (sof) {
+      unsigned char frame[5];  // precision, height, width
+      if (length < 7 || !in.read(reinterpret_cast<char*>(frame), 5)) return std::nullopt;
+      const long long height = BigEndian(frame + 1, 2), width = BigEndian(frame + 3, 2);
+      if (height == 0) return std::nullopt;  // height given later (DNL): the decoder decides
+      return std::make_pair(width, height);
+    }
+    in.seekg(length - 2, std::ios::cur);
   }
+  return std::nullopt;
+}
+
+}  // namespace
+
+std::optional<std::pair<long long, long long>> ReadImageHeaderSize(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  unsigned char head[24] = {};
+  if (!in.read(reinterpret_cast<char*>(head), 3)) return std::nullopt;
+  if (head[0] == 0xFF && head[1] == 0xD8 && head[2] == 0xFF) return JpegSize(in);
+  static const unsigned char kPng[12] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n',
+                                         0, 0, 0, 13};
+  if (!in.read(reinterpret_cast<char*>(head) + 3, 21)) return std::nullopt;
+  if (std::equal(kPng, kPng + 12, head) && std::equal(head + 12, head + 16, "IHDR")) {
+    return std::make_pair(BigEndian(head + 16, 4), BigEndian(head + 20, 4));
+  }
+  return std::nullopt;
+}
+
+namespace {
+
+Status CheckImageSize(const std::string& path, long long width, long long height) {
+  if (width <= kMaxImageSidePx && height <= kMaxImageSidePx &&
+      width * height <= kMaxImagePixels) {
+    return Status::Ok();
+  }
+  return Status::InvalidArgument(
+      path + ": " + std::to_string(width) + " x " + std::to_string(height) +
+      " pixels is beyond the limit of " + std::to_string(kMaxImageSidePx) + " pixels a side and " +
+      std::to_string(kMaxImagePixels / 1000000) + " megapixels");
+}
+
+// Reads and converts; may throw cv::Exception (caught by ReadShotImage).
+Result<ShotImage> DecodeShotImage(const std::string& path, SpotChannel channel) {
   // Sensor pixels: the EXIF orientation is not applied (header).
   cv::Mat image =
       cv::imread(path, cv::IMREAD_ANYDEPTH | cv::IMREAD_ANYCOLOR | cv::IMREAD_IGNORE_ORIENTATION);
   if (image.empty()) return Status::IoError(path + ": cannot read the image (not an image file?)");
+  OPL_RETURN_IF_ERROR(CheckImageSize(path, image.cols, image.rows));
   if (image.depth() != CV_8U && image.depth() != CV_16U) {
     return Status::InvalidArgument(path + ": image type " + OpenCvTypeName(image.type()) +
                                    " is not supported (8 or 16 bit)");
@@ -69,6 +137,29 @@ Result<ShotImage> ReadShotImage(const std::string& path, SpotChannel channel) {
     case SpotChannel::kBlue: cv::extractChannel(image, shot.for_spots, 0); break;
   }
   return shot;
+}
+
+}  // namespace
+
+Result<ShotImage> ReadShotImage(const std::string& path, SpotChannel channel) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) {
+    return Status::IoError(path + ": no such image");
+  }
+  if (const auto size = ReadImageHeaderSize(path)) {
+    OPL_RETURN_IF_ERROR(CheckImageSize(path, size->first, size->second));
+  }
+  try {
+    return DecodeShotImage(path, channel);
+  } catch (const cv::Exception& e) {
+    std::string what = e.err.empty() ? std::string(e.what()) : e.err;
+    for (char& c : what) {
+      if (c == '\n' || c == '\r') c = ' ';
+    }
+    return Status::IoError(path + ": cannot decode the image: " + what);
+  } catch (const std::bad_alloc&) {
+    return Status::IoError(path + ": cannot decode the image: out of memory");
+  }
 }
 
 }  // namespace opl

@@ -84,7 +84,7 @@ TEST(SimulateSweepCli, Errors) {
   EXPECT_EQ(r.err, "opl_simulate: --values: value list '5:2:x': 'x' is not a finite number\n");
   r = Simulate(base + " --param beams_per_side --values 5,8" + out);
   EXPECT_EQ(r.exit_code, 3);
-  EXPECT_EQ(r.err, "opl_simulate: beams_per_side = 8: must be an odd integer in [3, 1001]\n");
+  EXPECT_EQ(r.err, "opl_simulate: beams_per_side = 8: must be an odd integer in [3, 201]\n");
   r = Simulate(base + " --param noise_mm --values 0.1 --weighting best" + out);
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_EQ(r.out, "");

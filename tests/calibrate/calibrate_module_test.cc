@@ -198,5 +198,27 @@ TEST(CalibrateModule, ASliceMixingTwoSourcesIsRefused) {
   EXPECT_NE(r.status().message().find("no slice column"), std::string::npos);
 }
 
+TEST(CalibrateModule, GridsBeyondTheLimitAreRefusedWithoutOverflow) {
+  // Issue 19: a beam id of 2^31 - 1 made the grid inference square an n of
+  // 46341 (int overflow); --beams-per-side 100001 allocated n^2.
+  ModuleDesign d = test::Prototype();
+  SessionData s = Session(d, 4, 0.0);
+  s.spots[0].observation.beam_id = 2147483647;
+  Result<ModuleCalibrationResult> r = CalibrateModule(s.spots, s.slices, std::nullopt);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().message(),
+            "source '" + s.spots[0].source +
+                "': beam id 2147483647 is beyond the largest grid (201 x 201 = 40401 beams)");
+  s = Session(d, 4, 0.0);
+  CalibrateModuleOptions options;
+  for (int n : {203, 46341, 100001}) {
+    options.beams_per_side = n;
+    r = CalibrateModule(s.spots, s.slices, std::nullopt, options);
+    ASSERT_FALSE(r.ok());
+    EXPECT_EQ(r.status().message(),
+              "beams per side must be odd and in [3, 201], got " + std::to_string(n));
+  }
+}
+
 }  // namespace
 }  // namespace opl

@@ -104,5 +104,22 @@ TEST(ReadFileToString, ReadsAndReportsMissingFiles) {
   EXPECT_THAT(directory.status().message(), HasSubstr("is a directory"));
 }
 
+TEST(ReadFileToString, OnlyRegularFilesOfBoundedSize) {
+  // Issue 19: /dev/zero as an input read forever.
+  for (const char* device : {"/dev/zero", "/dev/urandom"}) {
+    Result<std::string> text = ReadFileToString(device);
+    ASSERT_FALSE(text.ok());
+    EXPECT_EQ(text.status().code(), StatusCode::kIoError);
+    EXPECT_EQ(text.status().message(),
+              std::string(device) + ": cannot read: not a regular file (a device, FIFO or socket)");
+  }
+  TempDir dir;
+  const std::string path = dir.Write("big", std::string(1001, 'x'));
+  EXPECT_EQ(ReadFileToString(path, 1000).status().message(),
+            path + ": cannot read: 1001 bytes, more than the 1000 an input may have");
+  EXPECT_EQ(ReadFileToString(path, 1001)->size(), 1001u);
+  EXPECT_EQ(kMaxInputFileBytes, 536870912);
+}
+
 }  // namespace
 }  // namespace opl

@@ -257,11 +257,42 @@ TEST(ModuleCalibrationJson, ErrorsNameFileAndFieldPath) {
             "cal.json: sources[1].name: duplicate source name 'A' (also sources[0])");
   EXPECT_EQ(ErrorOf("\"beams_per_side\": 3, \"origin_mm\": [1, 2, 3]",
                     "\"beams_per_side\": 4, \"origin_mm\": [1, 2, 3]"),
-            "cal.json: sources[0].beams_per_side: must be odd and >= 3, got 4");
+            "cal.json: sources[0].beams_per_side: must be odd and in [3, 201], got 4");
+  // Issue 19: grids beyond 201 x 201 (n^2 overflowed int at 46341).
+  for (const char* n : {"203", "46341", "100001"}) {
+    EXPECT_EQ(ErrorOf("\"beams_per_side\": 3, \"origin_mm\": [1, 2, 3]",
+                      std::string("\"beams_per_side\": ") + n + ", \"origin_mm\": [1, 2, 3]"),
+              std::string("cal.json: sources[0].beams_per_side: must be odd and in [3, 201], got ") +
+                  n);
+  }
   EXPECT_EQ(ErrorOf("[[1e-10, 0], [0, 2e-10]]", "[[1e-10, 0], [0, -2e-10]]"),
             "cal.json: sources[0].beams: beam 1: covariance is not symmetric positive "
             "semi-definite");
   EXPECT_EQ(ErrorOf("\"sources\": [", "\"sourcez\": ["), "cal.json: sources: missing");
+}
+
+TEST(ModuleCalibrationJson, OneSeparationPerPair) {
+  // Issue 19: A-B listed twice (55 and 66 mm) was read, and a measurement used
+  // one of them silently.
+  const std::string sep = R"({"from": "A", "to": "B", "length_mm": 55, "u_length_mm": 0.001})";
+  EXPECT_EQ(ErrorOf(sep, sep + R"(, {"from": "A", "to": "B", "length_mm": 66, "u_length_mm": 0.001})"),
+            "cal.json: separations[1]: A-B 66 mm contradicts separations[0], A-B 55 mm (each pair "
+            "of sources may have one separation)");
+  EXPECT_EQ(ErrorOf(sep, sep + R"(, {"from": "B", "to": "A", "length_mm": 55, "u_length_mm": 0.001})"),
+            "cal.json: separations[1]: B-A 55 mm duplicates separations[0], A-B 55 mm (each pair "
+            "of sources may have one separation)");
+  ModuleCalibration calibration = testing_support::SyntheticCalibration(3, 5);
+  ASSERT_FALSE(calibration.separations.empty());
+  calibration.separations.push_back(calibration.separations.front());
+  EXPECT_THAT(calibration.Validate().message(), ::testing::HasSubstr("is given twice"));
+}
+
+TEST(ModuleCalibrationJson, NestingIsCappedAt64Levels) {
+  // Issue 19: 80 KB of '[' took GBs; refused at the bracket opening level 65.
+  Result<ModuleCalibration> r = ParseModuleCalibrationJson("\n" + std::string(80000, '['), "c.json");
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().code(), StatusCode::kParseError);
+  EXPECT_EQ(r.status().message(), "c.json:2:65: invalid JSON: nested deeper than 64 levels");
 }
 
 TEST(ModuleCalibrationJson, SyntaxErrorsGiveLineAndColumn) {

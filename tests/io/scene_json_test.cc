@@ -7,6 +7,7 @@
 #include <string>
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include "io/temp_dir.h"
 
@@ -45,6 +46,28 @@ std::string Doc(const std::string& cameras = "[" + kCamera + "]", const std::str
 std::string Message(const std::string& text) {
   Result<Scene> r = ParseSceneJson(text, "s.json");
   return r.ok() ? std::string("OK") : r.status().message();
+}
+
+TEST(SceneJson, NestingIsCappedAt64Levels) {
+  // Issue 19: an 80 KB file of '[' took 2.4 GB.
+  EXPECT_EQ(Message(std::string(80000, '[')), "s.json:1:65: invalid JSON: nested deeper than 64 levels");
+  EXPECT_EQ(Message(R"({"format": "opl.scene", "a": )" + std::string(70, '{')),
+            "s.json:1:93: invalid JSON: nested deeper than 64 levels");
+}
+
+TEST(SceneJson, CameraSizesWithinTheImageLimit) {
+  // Issue 19 (as finding 4): a camera of 100000 x 100000 pixels was accepted
+  // and rendering allocated 10^10 pixels a frame.
+  Result<Scene> example = ReadSceneJson(ExamplePath("scene_small.json"));
+  ASSERT_TRUE(example.ok());
+  nlohmann::json scene = nlohmann::json::parse(testing_support::ReadAll(ExamplePath("scene_small.json")));
+  scene["module"] = ExamplePath("scene_small_module.json");
+  scene["cameras"][1]["width_px"] = 100000;
+  EXPECT_EQ(Message(scene.dump()), "s.json: cameras[1].width_px: must be in [1, 32768], got 100000");
+  scene["cameras"][1]["width_px"] = 20000;
+  scene["cameras"][1]["height_px"] = 20000;
+  EXPECT_EQ(Message(scene.dump()),
+            "s.json: cameras[1]: 20000 x 20000 pixels is beyond the limit of 160 megapixels");
 }
 
 TEST(SceneJson, ReadsTheSmallExample) {

@@ -240,7 +240,8 @@ TEST(DarkFrames, AllShotsLaserOffIsRefused) {
   ASSERT_FALSE(fe.ok());
   EXPECT_EQ(fe.status().code(), StatusCode::kInvalidArgument);
   EXPECT_EQ(fe.status().message(),
-            "every one of the 8 shots has \"lasers\": [] (laser off): no shot shows a laser");
+            "scene: shots: no shot has a laser on (every shot's 'lasers' is empty or absent): "
+            "there are no spots to measure");
 }
 
 }  // namespace

@@ -212,7 +212,11 @@ TEST(ModuleDesignJson, EveryErrorNamesFileFieldAndProblem) {
   ExpectError(Replace(ok, R"("origin_mm": [0, 27.5, 0])", R"("origin_mm": [0, null, 0])"),
               "design.json: sources[0].origin_mm[1]: expected a number, got null");
   ExpectError(Replace(ok, R"("beams_per_side": 11)", R"("beams_per_side": 10)"),
-              "design.json: sources[0].beams_per_side: must be odd and >= 3, got 10");
+              "design.json: sources[0].beams_per_side: must be odd and in [3, 201], got 10");
+  ExpectError(Replace(ok, R"("beams_per_side": 11)", R"("beams_per_side": 46341)"),
+              "design.json: sources[0].beams_per_side: must be odd and in [3, 201], got 46341");
+  ExpectError(Replace(ok, R"("beams_per_side": 11)", R"("beams_per_side": 100001)"),
+              "design.json: sources[0].beams_per_side: must be odd and in [3, 201], got 100001");
   ExpectError(Replace(ok, R"("beams_per_side": 11)", R"("beams_per_side": 11.5)"),
               "design.json: sources[0].beams_per_side: expected an integer, got 11.5");
   ExpectError(Replace(ok, R"("full_angle_deg": 20)", R"("full_angle_deg": 95)"),
@@ -281,6 +285,17 @@ TEST(ModuleDesignJson, InvalidJsonNonFiniteDuplicateKeysAndIo) {
               "design.json: sources[1].origin_mm: duplicate key (each field may appear once)");
   ExpectError(Replace(Doc(kTwo, kPlane), R"("version": 1)", R"("version": 1, "version": 1)"),
               "design.json: version: duplicate key (each field may appear once)");
+  // Issue 19: nesting is capped at 64 levels (80 KB of '[' took 2.4 GB), refused
+  // at the bracket opening level 65; brackets inside strings do not count.
+  ExpectError(std::string(80000, '['),
+              "design.json:1:65: invalid JSON: nested deeper than 64 levels");
+  ExpectError(R"({"format": "opl.module_design", "version": 1, "x": )" + std::string(63, '[') +
+                  std::string(63, ']') + "}",
+              "design.json: x: unknown field (allowed here: description, format, "
+              "noise_frame_rotation_xyz_rad, sources, spot_noise_mm, surface, version)");  // 64 levels: parsed
+  ExpectError("{\"format\": \"" + std::string(100, '[') + "\\\"\",\n\"a\": " +
+                  std::string(64, '{') + "\"b\": 1" + std::string(64, '}') + "}",
+              "design.json:2:69: invalid JSON: nested deeper than 64 levels");
 
   const Result<ModuleDesign> missing = ReadModuleDesignJson("/nonexistent/design.json");
   ASSERT_FALSE(missing.ok());

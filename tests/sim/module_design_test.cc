@@ -44,7 +44,7 @@ TEST(ModuleDesign, ValidateNamesSourceAndField) {
   EXPECT_EQ(message(d), "source 0 has an empty name");
   d = Prototype();
   d.sources[1].beams_per_side = 10;
-  EXPECT_EQ(message(d), "source 'B': beams_per_side must be odd and >= 3, got 10");
+  EXPECT_EQ(message(d), "source 'B': beams_per_side must be odd and in [3, 201], got 10");
   d = Prototype();
   d.sources[1].full_angle_deg = 0.0;
   EXPECT_EQ(message(d), "source 'B': full angle must be finite, > 0 and < 180 deg, got 0 deg");
@@ -102,7 +102,7 @@ TEST(ModuleDesign, MakePatternPerModel) {
   s.beams_per_side = 8;
   p = MakePattern(s);
   ASSERT_FALSE(p.ok());
-  EXPECT_EQ(p.status().message(), "source 'A': beams_per_side must be odd and >= 3, got 8");
+  EXPECT_EQ(p.status().message(), "source 'A': beams_per_side must be odd and in [3, 201], got 8");
 
   // A file pattern, and a design that disagrees with it.
   const std::string path = (std::filesystem::temp_directory_path() /

@@ -195,7 +195,17 @@ TEST(PatternParameters, InvalidGiveEmptyPatternsAndNamedErrors) {
   EXPECT_EQ(MakeGratingPatternAtWavelength(11, 88 * kDeg, 658, 700).beams_per_side(), 0);
 
   Status st = CheckPatternParameters(PatternModel::kEqualAngle, 10, 0.5, 658);
-  EXPECT_EQ(st.message(), "beams_per_side must be odd and >= 3, got 10");
+  EXPECT_EQ(st.message(), "beams_per_side must be odd and in [3, 201], got 10");
+  // Issue 19: a grid beyond the limit is refused before anything is allocated.
+  EXPECT_EQ(CheckPatternParameters(PatternModel::kEqualAngle, 46341, 0.5, 658).message(),
+            "beams_per_side must be odd and in [3, 201], got 46341");
+  EXPECT_EQ(MakeEqualAnglePattern(100001, 0.5).beams_per_side(), 0);
+  EXPECT_EQ(BeamPattern::Create(46341, {Beam{1, 0.0, 0.0, std::nullopt}}).status().message(),
+            "beams_per_side must be odd and in [3, 201], got 46341");
+  EXPECT_TRUE(BeamPattern::Create(201, {Beam{40401, 0.0, 0.0, std::nullopt}}).ok());
+  EXPECT_EQ(BeamPattern(201, {}).central_beam_id(), 20201);
+  EXPECT_EQ(BeamPattern(100001, {}).central_beam_id(), 0);  // was 705132705 (overflow)
+  EXPECT_EQ(BeamPattern(100001, {Beam{1, 0.0, 0.0, std::nullopt}}).Find(1), nullptr);
   st = CheckPatternParameters(PatternModel::kGrating, 11, 95 * kDeg, 658);
   EXPECT_NE(st.message().find("< 90 deg"), std::string::npos) << st.message();
   EXPECT_NE(st.message().find("got 95 deg"), std::string::npos) << st.message();
@@ -252,7 +262,9 @@ TEST(PatternCsv, ErrorsNameFileAndLine) {
   ExpectCsvError("id,az_rad,el_rad\n1,0,0\n", StatusCode::kParseError,
                  ":1: missing '# beams_per_side: N' line before the header");
   ExpectCsvError("# beams_per_side: 4\n", StatusCode::kParseError,
-                 ":1: beams_per_side must be an odd integer >= 3, got '4'");
+                 ":1: beams_per_side must be an odd integer in [3, 201], got '4'");
+  ExpectCsvError("# beams_per_side: 100001\n", StatusCode::kParseError,
+                 ":1: beams_per_side must be an odd integer in [3, 201], got '100001'");
   ExpectCsvError("# beams_per_side 3\n", StatusCode::kParseError,
                  ":1: expected '# beams_per_side: N'");
   ExpectCsvError("# beams_per_side: 3\nid,az,el_rad\n", StatusCode::kParseError,
@@ -278,6 +290,16 @@ TEST(PatternCsv, ErrorsNameFileAndLine) {
   ASSERT_FALSE(missing.ok());
   EXPECT_EQ(missing.status().code(), StatusCode::kIoError);
   EXPECT_EQ(missing.status().message(), "/nonexistent/dir/pattern.csv: cannot open pattern file");
+  // Issue 19: a device never ends; a huge file is refused before reading.
+  const Result<BeamPattern> zero = ReadPatternCsv("/dev/zero");
+  ASSERT_FALSE(zero.ok());
+  EXPECT_EQ(zero.status().code(), StatusCode::kIoError);
+  EXPECT_EQ(zero.status().message(), "/dev/zero: cannot read pattern file: not a regular file");
+  const std::string big = WriteFile("big.csv", "# beams_per_side: 3\n");
+  std::filesystem::resize_file(big, kMaxPatternFileBytes + 1);
+  EXPECT_EQ(ReadPatternCsv(big).status().message(),
+            big + ": cannot read pattern file: 16777217 bytes, more than the 16777216 a pattern "
+                  "file may have (201 x 201 beams need a few MB)");
 }
 
 }  // namespace

@@ -352,7 +352,7 @@ TEST(SimulateSpots, InvalidOptionsAndDesignsAreErrors) {
   const auto r = SimulateSpots(bad, {});
   ASSERT_FALSE(r.ok());
   EXPECT_EQ(r.status().code(), StatusCode::kInvalidArgument);
-  EXPECT_EQ(r.status().message(), "source 'A': beams_per_side must be odd and >= 3, got 4");
+  EXPECT_EQ(r.status().message(), "source 'A': beams_per_side must be odd and in [3, 201], got 4");
 }
 
 TEST(Random, PortableGeneratorsHaveTheRightMoments) {

@@ -75,6 +75,18 @@ TEST(CalibrationMonteCarloTest, DefaultScreensAreThoseOfOplSimulateSlices) {
   EXPECT_TRUE(options.Validate().ok());
 }
 
+TEST(CalibrationMonteCarloTest, IterationsAreBoundedUpFront) {
+  // Issue 19: 2e9 iterations reserved ~120 B each before the first one ran.
+  CalibrationMonteCarloOptions options;
+  options.iterations = 2000000000;
+  EXPECT_EQ(options.Validate().message(), "iterations must be at most 10000000, got 2000000000");
+  MonteCarloOptions mc;
+  mc.iterations = 2000000000;
+  EXPECT_EQ(mc.Validate().message(), "iterations must be at most 10000000, got 2000000000");
+  mc.iterations = kMaxMonteCarloIterations;
+  EXPECT_TRUE(mc.Validate().ok());
+}
+
 // The reference of the gauge-dependent quantities is the noise-free
 // calibration: for equal-angle patterns (central beam along +X, central row at
 // el = 0) it is the design itself.

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -121,6 +122,76 @@ TEST(ShotImage, Errors) {
   ASSERT_FALSE(floating.ok());
   EXPECT_NE(floating.status().message().find("CV_32FC1"), std::string::npos)
       << floating.status().message();
+
+  // Issue 19: a 60-byte PNG claiming 100000 x 100000 pixels ended in an
+  // uncaught OpenCV exception (exit 1): refused from its header.
+  auto png_header = [](uint32_t width, uint32_t height) {
+    std::string bytes = std::string("\x89PNG\r\n\x1a\n", 8) + std::string("\0\0\0\x0dIHDR", 8);
+    for (uint32_t v : {width, height}) {
+      for (int shift = 24; shift >= 0; shift -= 8) bytes += static_cast<char>((v >> shift) & 0xFF);
+    }
+    bytes += std::string("\x08\x02\0\0\0", 5);
+    return bytes + std::string(60 - bytes.size(), '\0');
+  };
+  const std::string huge = dir.Write("huge.png", png_header(100000, 100000));
+  ASSERT_EQ(testing_support::ReadAll(huge).size(), 60u);
+  Result<ShotImage> too_big = ReadShotImage(huge, SpotChannel::kRed);
+  ASSERT_FALSE(too_big.ok());
+  EXPECT_EQ(too_big.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_EQ(too_big.status().message(),
+            huge + ": 100000 x 100000 pixels is beyond the limit of 32768 pixels a side and 160 "
+                   "megapixels");
+  const std::string wide = dir.Write("wide.png", png_header(40000, 10));
+  EXPECT_EQ(ReadShotImage(wide, SpotChannel::kRed).status().message(),
+            wide + ": 40000 x 10 pixels is beyond the limit of 32768 pixels a side and 160 "
+                   "megapixels");
+  const std::string many = dir.Write("many.png", png_header(20000, 20000));
+  EXPECT_THAT(ReadShotImage(many, SpotChannel::kRed).status().message(),
+              ::testing::HasSubstr("20000 x 20000 pixels is beyond the limit"));
+  // Within the limit, a truncated file: the decoder's refusal, one line.
+  const std::string truncated = dir.Write("truncated.png", png_header(1000, 1000));
+  Result<ShotImage> cut = ReadShotImage(truncated, SpotChannel::kRed);
+  ASSERT_FALSE(cut.ok());
+  EXPECT_EQ(cut.status().code(), StatusCode::kIoError);
+  EXPECT_EQ(cut.status().message().find('\n'), std::string::npos);
+  EXPECT_EQ(cut.status().message().rfind(truncated + ": ", 0), 0u) << cut.status().message();
+
+  // JPEG: the size from the frame header (SOF), after the APP segments.
+  std::vector<unsigned char> jpeg;
+  ASSERT_TRUE(cv::imencode(".jpg", cv::Mat(48, 64, CV_8UC3, cv::Scalar(1, 2, 3)), jpeg));
+  const std::string small = dir.Write("small.jpg", std::string(jpeg.begin(), jpeg.end()));
+  const auto size = ReadImageHeaderSize(small);
+  ASSERT_TRUE(size.has_value());
+  EXPECT_EQ(size->first, 64);
+  EXPECT_EQ(size->second, 48);
+  for (size_t i = 0; i + 9 < jpeg.size(); ++i) {
+    if (jpeg[i] == 0xFF && jpeg[i + 1] == 0xC0) {
+      jpeg[i + 5] = jpeg[i + 6] = jpeg[i + 7] = jpeg[i + 8] = 0xEA;  // 60138 x 60138
+      break;
+    }
+  }
+  const std::string big_jpeg = dir.Write("big.jpg", std::string(jpeg.begin(), jpeg.end()));
+  EXPECT_EQ(ReadShotImage(big_jpeg, SpotChannel::kRed).status().message(),
+            big_jpeg + ": 60138 x 60138 pixels is beyond the limit of 32768 pixels a side and 160 "
+                       "megapixels");
+  EXPECT_FALSE(ReadImageHeaderSize(text).has_value());
+
+  // A format whose header is not read here (BMP) claiming 100000 x 100000:
+  // OpenCV's own refusal (an exception) becomes a Status naming the file.
+  std::string bmp = "BM";
+  auto le32 = [&bmp](uint32_t v) {
+    for (int k = 0; k < 4; ++k) bmp += static_cast<char>((v >> (8 * k)) & 0xFF);
+  };
+  le32(60); le32(0); le32(54); le32(40); le32(100000); le32(100000);
+  bmp += std::string("\x01\0\x18\0", 4);
+  le32(0); le32(0); le32(2835); le32(2835); le32(0); le32(0);
+  bmp += std::string(6, '\0');
+  const std::string huge_bmp = dir.Write("huge.bmp", bmp);
+  Result<ShotImage> bmp_shot = ReadShotImage(huge_bmp, SpotChannel::kRed);
+  ASSERT_FALSE(bmp_shot.ok());
+  EXPECT_EQ(bmp_shot.status().message().rfind(huge_bmp + ": ", 0), 0u)
+      << bmp_shot.status().message();
+  EXPECT_EQ(bmp_shot.status().message().find('\n'), std::string::npos);
 
   EXPECT_EQ(*ParseSpotChannel("green"), SpotChannel::kGreen);
   EXPECT_FALSE(ParseSpotChannel("infrared").ok());

@@ -20,8 +20,19 @@ namespace opl {
 
 Status WriteFileAtomically(const std::string& path, const std::string& contents);
 
-// Reads a whole file. IoError "<path>: cannot open: <reason>" on failure
-// (missing, unreadable), "<path>: cannot read: is a directory".
-Result<std::string> ReadFileToString(const std::string& path);
+// The largest input file a reader takes (docs/formats.md, "Limits"): a
+// calibration session of two 201 x 201 grids on 20 screens is about 250 MB of
+// spots CSV; a design's pattern file has at most 40401 beams (a few MB).
+constexpr long long kMaxInputFileBytes = 512LL << 20;  // 512 MiB
+
+// Reads a whole regular file of at most `max_bytes`. IoError
+// "<path>: cannot open: <reason>" on failure (missing, unreadable),
+// "<path>: cannot read: is a directory", "<path>: cannot read: not a regular
+// file" (a device such as /dev/zero, a FIFO, a socket: they may never end),
+// "<path>: cannot read: 600000000 bytes, more than the 536870912 an input may
+// have". The size is checked before reading and the read is bounded (a file
+// growing meanwhile is refused too).
+Result<std::string> ReadFileToString(const std::string& path,
+                                     long long max_bytes = kMaxInputFileBytes);
 
 }  // namespace opl

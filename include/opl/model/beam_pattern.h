@@ -8,6 +8,7 @@
 #pragma once
 
 #include <optional>
+#include <string>
 #include <vector>
 
 #include <Eigen/Core>
@@ -15,6 +16,21 @@
 #include "opl/core/status.h"
 
 namespace opl {
+
+// The largest grid a pattern may have: n <= 201, i.e. at most 40401 beams. Real
+// DOEs fan a beam into grids of up to about 100 x 100 (the prototype: 11 x 11);
+// twice that leaves room while keeping every n x n array small (a few MB) and
+// every beam id, n^2 and products of ids far from int overflow. Every reader
+// (design and calibration JSON, pattern CSV) and every tool option enforces it
+// (docs/formats.md).
+constexpr int kMaxBeamsPerSide = 201;
+
+// OK when n is odd and in [3, kMaxBeamsPerSide]; else InvalidArgument
+// "beams_per_side must be odd and in [3, 201], got <n>".
+Status CheckBeamsPerSide(int beams_per_side);
+// "must be odd and in [3, 201], got <n>" (the tail of CheckBeamsPerSide's
+// message, for readers that name the field themselves); empty when valid.
+std::string BeamsPerSideProblem(long long beams_per_side);
 
 struct Beam {
   int id = 0;           // 1 .. n*n
@@ -37,14 +53,20 @@ class BeamPattern {
   BeamPattern() = default;
   // Builds a pattern; call Validate() (or use Create) before relying on it.
   BeamPattern(int beams_per_side, std::vector<Beam> beams);
-  // Validated construction: n odd >= 3, ids in 1..n^2 and unique, finite angles,
+  // Validated construction: n odd in [3, kMaxBeamsPerSide], ids in 1..n^2 and unique, finite angles,
   // |el| < pi/2, covariances symmetric positive semi-definite.
   static Result<BeamPattern> Create(int beams_per_side, std::vector<Beam> beams);
 
   Status Validate() const;
 
   int beams_per_side() const { return beams_per_side_; }
-  int central_beam_id() const { return (beams_per_side_ * beams_per_side_ + 1) / 2; }
+  // 0 when n is outside [1, kMaxBeamsPerSide] (an invalid pattern): n^2 never
+  // overflows.
+  int central_beam_id() const {
+    return beams_per_side_ >= 1 && beams_per_side_ <= kMaxBeamsPerSide
+               ? (beams_per_side_ * beams_per_side_ + 1) / 2
+               : 0;
+  }
   const std::vector<Beam>& beams() const { return beams_; }
   // The beam with this id, or nullptr when the pattern lacks it or the id is out
   // of range.

@@ -252,6 +252,13 @@ struct FrontEndResult {
   std::string ToText() const;
 };
 
+// OK when at least one shot of the scene has a laser on; else
+// InvalidArgument "shots: no shot has a laser on (every shot's 'lasers' is
+// empty or absent): there are no spots to measure". RunImageFrontEnd, MeasureScaleFromImages
+// and CalibrateFromImages refuse such a scene ("scene: shots: ...") before reading
+// any image; the tools name the scene file.
+Status CheckSceneHasLasers(const Scene& scene);
+
 Result<FrontEndResult> RunImageFrontEnd(const Scene& scene, const std::string& images_dir,
                                         const FrontEndOptions& options = FrontEndOptions());
 

@@ -91,6 +91,7 @@ struct ImageMeasureReport {
   std::string ToJson() const;
 };
 
+
 Result<ImageMeasureReport> MeasureScaleFromImages(
     const Scene& scene, const std::string& images_dir, const ModuleCalibration& calibration,
     const ImageMeasureOptions& options = ImageMeasureOptions());

@@ -101,8 +101,11 @@ Eigen::Matrix<double, Eigen::Dynamic, 2> GratingDAzElDWavelength(int beams_per_s
 //
 // Fields are separated by commas and trimmed of spaces; quoting is not
 // supported. Ids are integers in 1..n^2, unique; angles finite radians with
-// |az| <= pi and |el| < pi/2. Beams may be missing. Errors are IoError (file
-// cannot be read) or ParseError, one line naming "<path>:<line>".
+// |az| <= pi and |el| < pi/2. Beams may be missing. Only a regular file of at
+// most kMaxPatternFileBytes is read (a device such as /dev/zero never ends).
+// Errors are IoError (file cannot be read, not a regular file, too large) or
+// ParseError, one line naming "<path>:<line>".
+constexpr long long kMaxPatternFileBytes = 16LL << 20;  // 16 MiB
 Result<BeamPattern> ReadPatternCsv(const std::string& path);
 
 // Writes `pattern` in the format ReadPatternCsv reads (17 significant digits,

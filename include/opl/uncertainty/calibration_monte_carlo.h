@@ -67,7 +67,8 @@ namespace opl {
 ScreenSlicesOptions DefaultCalibrationScreens();
 
 struct CalibrationMonteCarloOptions {
-  int iterations = 200;  // M, >= 1 (coverage intervals need M >= 20 at 95 %)
+  // M, in [1, kMaxMonteCarloIterations] (coverage intervals need M >= 20 at 95 %)
+  int iterations = 200;
   uint64_t seed = 1;
   // Worker threads, >= 0; 0 = std::thread::hardware_concurrency(). Never more
   // than the iterations. The result does not depend on it.

@@ -46,8 +46,16 @@
 
 namespace opl {
 
+// The most Monte Carlo trials a run may ask for (docs/uncertainty.md): ten
+// times the 10^6 JCGM 101 (7.2.2) takes as usually enough for a 95 % coverage
+// interval to two significant digits. The results of every trial are kept
+// (about 120 bytes a trial: 1.2 GB at the limit), so M is bounded up front
+// rather than failing on allocation.
+constexpr int kMaxMonteCarloIterations = 10000000;
+
 struct MonteCarloOptions {
-  int iterations = 1000;  // M, >= 1 (coverage intervals need M >= 20)
+  // M, in [1, kMaxMonteCarloIterations] (coverage intervals need M >= 20)
+  int iterations = 1000;
   uint64_t seed = 1;
   // Worker threads, >= 0; 0 = std::thread::hardware_concurrency(). Never more
   // than the iterations. The result does not depend on it.

@@ -20,18 +20,38 @@
 // keeps 30% of it while adding the wall's green and blue noise and texture.
 // A grey image is used for both as it is.
 //
-// Errors (Status): IoError naming the file when it is missing or not an
-// image; InvalidArgument for a depth other than 8 or 16 bit (the message
-// names the type).
+// Size limit. An image may have at most kMaxImageSidePx pixels a side and
+// kMaxImagePixels pixels in all (docs/formats.md, "Limits"): the largest
+// metric cameras give about 150 megapixels (14204 x 10652). For PNG and JPEG
+// the size is read from the file's header (IHDR, SOF) BEFORE decoding, so a
+// 60-byte file claiming 100000 x 100000 pixels is refused at once instead of
+// making the decoder allocate for it; other formats are checked after
+// decoding (OpenCV's own limit, 2^30 pixels, guards their allocation).
+//
+// Errors (Status): IoError naming the file when it is missing, not a regular
+// file or not an image, or when the decoder fails ("cannot decode the image:
+// ..."); InvalidArgument for a depth other than 8 or 16 bit (the message
+// names the type) or a size beyond the limit ("<file>: 100000 x 100000
+// pixels is beyond the limit of 32768 pixels a side and 160 megapixels").
 #pragma once
 
+#include <optional>
 #include <string>
+#include <utility>
 
 #include <opencv2/core.hpp>
 
 #include "opl/core/status.h"
 
 namespace opl {
+
+constexpr int kMaxImageSidePx = 32768;
+constexpr long long kMaxImagePixels = 160LL * 1000 * 1000;
+
+// The width and height a PNG (IHDR) or JPEG (SOF) file's header declares, read
+// without decoding; nullopt for another format or a header that cannot be
+// read (the decoder then reports it).
+std::optional<std::pair<long long, long long>> ReadImageHeaderSize(const std::string& path);
 
 // The channel of a colour photograph in which laser spots are detected.
 enum class SpotChannel {

@@ -52,7 +52,15 @@ void Normal(const std::vector<Pixel>& px, const Vec7& t, Mat7* H, Vec7* g) {
     j(4) = -0.5 * Ae * du * du;
     j(5) = -Ae * du * dv;
     j(6) = -0.5 * Ae * dv * dv;
-    H->selfadjointView<Eigen::Lower>().rankUpdate(j, p.weight);
+    // The lower triangle of H += w j j^T, with the very operations of
+    // Eigen's selfadjointView<Lower>().rankUpdate(j, w) (column c gets
+    // (w j_c) j_r), so the fit is the same to the bit; written out because
+    // Eigen's rank update of a fixed 7 x 7 is an out-of-line generic loop,
+    // the largest single cost of DetectSpots on 18 MP images.
+    for (int c = 0; c < 7; ++c) {
+      const double wj = p.weight * j(c);
+      for (int row = c; row < 7; ++row) (*H)(row, c) += wj * j(row);
+    }
     g->noalias() += p.weight * r * j;
   }
   *H = H->selfadjointView<Eigen::Lower>();

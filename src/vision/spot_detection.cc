@@ -6,6 +6,9 @@
 #include "opl/vision/spot_detection.h"
 
 #include <algorithm>
+#include <array>
+#include <cstdint>
+#include <cstdlib>
 #include <cmath>
 #include <limits>
 #include <sstream>
@@ -38,6 +41,19 @@ using spot_internal::PixRow;
 using spot_internal::SpeckleCovariance;
 using spot_internal::Vec7;
 using spot_internal::Window;
+
+// The median as Median gives it (the element at index n / 2 of the sorted
+// values; 0 when n is 0) of n values in 0..255, from their counts.
+double MedianOfCounts(const std::array<int, 256>& count, int n) {
+  if (n == 0) return 0.0;
+  const int mid = n / 2;
+  int below = 0;
+  for (int k = 0; k < 256; ++k) {
+    below += count[static_cast<size_t>(k)];
+    if (below > mid) return k;
+  }
+  return 255.0;
+}
 
 }  // namespace
 
@@ -132,21 +148,45 @@ Result<SpotDetectionResult> DetectSpots(const cv::Mat& image, const SpotDetectio
   // median and MAD, and 1/16 of the work of all pixels at 64 px blocks.
   const int stride = std::max(1, B / 16);
   std::vector<float> sample, diffs;
+  std::array<int, 256> sample_count{}, diff_count{};
   for (int by = 0; by < nby; ++by) {
     for (int bx = 0; bx < nbx; ++bx) {
       const int x0 = bx * B, x1 = std::min(W, x0 + B);
       const int y0 = by * B, y1 = std::min(H, y0 + B);
-      sample.clear();
-      diffs.clear();
-      for (int y = y0; y < y1; y += stride) {
-        const PixRow row(img, y);
-        for (int x = x0; x < x1; x += stride) {
-          sample.push_back(row[x]);
-          if (x + 1 < W) diffs.push_back(std::fabs(row[x + 1] - row[x]));
+      double median_sample = 0.0, median_diff = 0.0;
+      if (img.depth() == CV_8U) {
+        // 8 bit: the same medians by counting (the values are 0..255).
+        sample_count.fill(0);
+        diff_count.fill(0);
+        int num_samples = 0, num_diffs = 0;
+        for (int y = y0; y < y1; y += stride) {
+          const uint8_t* row = img.ptr<uint8_t>(y);
+          for (int x = x0; x < x1; x += stride) {
+            ++sample_count[row[x]];
+            ++num_samples;
+            if (x + 1 < W) {
+              ++diff_count[static_cast<size_t>(std::abs(row[x + 1] - row[x]))];
+              ++num_diffs;
+            }
+          }
         }
+        median_sample = MedianOfCounts(sample_count, num_samples);
+        median_diff = MedianOfCounts(diff_count, num_diffs);
+      } else {
+        sample.clear();
+        diffs.clear();
+        for (int y = y0; y < y1; y += stride) {
+          const PixRow row(img, y);
+          for (int x = x0; x < x1; x += stride) {
+            sample.push_back(row[x]);
+            if (x + 1 < W) diffs.push_back(std::fabs(row[x + 1] - row[x]));
+          }
+        }
+        median_sample = Median(&sample);
+        median_diff = Median(&diffs);
       }
-      bg_blocks.at<float>(by, bx) = static_cast<float>(Median(&sample));
-      const double sigma = 1.4826 * Median(&diffs) / std::sqrt(2.0);
+      bg_blocks.at<float>(by, bx) = static_cast<float>(median_sample);
+      const double sigma = 1.4826 * median_diff / std::sqrt(2.0);
       noise_blocks.at<float>(by, bx) = static_cast<float>(std::max(sigma, options.min_noise_dn));
     }
   }
@@ -230,16 +270,21 @@ Result<SpotDetectionResult> DetectSpots(const cv::Mat& image, const SpotDetectio
   // cv::connectedComponentsWithStats 100-200 ms; its active blocks, little).
   cv::Mat active = cv::Mat::zeros(nby, nbx, CV_8U);
   {
+    // Row by row: the mask by OpenCV's vectorised comparison (255 where
+    // smooth > threshold, else 0), then the row's blocks that hold an "on"
+    // pixel (an OR over the block's bytes, vectorised by the compiler).
     std::vector<float> thr_row;
     for (int y = 0; y < H; ++y) {
       thr.Row(y, &thr_row);
-      const float* s = smooth.ptr<float>(y);
       uint8_t* m = mask.ptr<uint8_t>(y);
+      cv::Mat mask_row(1, W, CV_8U, m);
+      cv::compare(smooth.row(y), cv::Mat(1, W, CV_32F, thr_row.data()), mask_row, cv::CMP_GT);
       uint8_t* a = active.ptr<uint8_t>(y / B);
-      for (int x = 0; x < W; ++x) {
-        const bool on = s[x] > thr_row[static_cast<size_t>(x)];
-        m[x] = on ? 255 : 0;
-        if (on) a[x / B] = 1;
+      for (int bx = 0; bx < nbx; ++bx) {
+        if (a[bx] != 0) continue;
+        uint8_t any = 0;
+        for (int x = bx * B, x1 = std::min(W, x + B); x < x1; ++x) any |= m[x];
+        if (any != 0) a[bx] = 1;
       }
     }
   }

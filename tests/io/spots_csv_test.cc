@@ -8,9 +8,23 @@
 #include <gtest/gtest.h>
 
 #include "io/temp_dir.h"
+#include "opl/core/message_text.h"
 
 namespace opl {
 namespace {
+
+// opl::SafeForMessage / QuoteForMessage (opl/core/message_text.h), which every
+// reader uses to echo file content (issue 19 item 7).
+TEST(SafeForMessage, EscapesControlCharactersAndCuts) {
+  EXPECT_EQ(SafeForMessage("A\x1b[31m\n\r\t\x7f\x01z"), "A\\x1b[31m\\n\\r\\t\\x7f\\x01z");
+  EXPECT_EQ(QuoteForMessage("cam0"), "'cam0'");
+  EXPECT_EQ(SafeForMessage(std::string(300, 'a')), std::string(200, 'a') + "...");
+  EXPECT_EQ(SafeForMessage("abcdef", 3), "abc...");
+  // Not inside a UTF-8 character: "\xc3\xa9" is one (e acute).
+  EXPECT_EQ(SafeForMessage("ab\xc3\xa9", 3), "ab...");
+  EXPECT_EQ(SafeForMessage("ab\xc3\xa9", 4), "ab\xc3\xa9");
+  EXPECT_EQ(OneLineMessage("a\nb\x1b"), "a\\nb\\x1b");
+}
 
 using ::testing::HasSubstr;
 

@@ -96,13 +96,13 @@ TEST(SceneJson, IntrinsicsArePlausible) {
   // The corner is at r = 0.667 (normalized): r (1 - r^2) peaks at r = 0.577.
   EXPECT_EQ(with("\"k1\": -0.05", "\"k1\": -1"),
             "s.json: cameras[0].intrinsics.k1: the distortion folds back inside the image (r_d "
-            "stops increasing at r = 0.577, r_d = 0.385; the image corner is at r_d = 0.667, "
+            "stops increasing at r = 0.578, r_d = 0.385; the image corner is at r_d = 0.667, "
             "normalized)");
   EXPECT_EQ(with("\"k1\": -0.05", "\"k1\": -0.05, \"k3\": -40"),
             "s.json: cameras[0].intrinsics.k3: the distortion folds back inside the image (r_d "
-            "stops increasing at r = 0.5, r_d = 0.493; the image corner is at r_d = 0.667, "
+            "stops increasing at r = 0.39, r_d = 0.332; the image corner is at r_d = 0.667, "
             "normalized)");
-  // Monotonic but absurd: the corner would be at r = 0.008.
+  // Monotonic but absurd: the corner would be at r = 0.009.
   EXPECT_THAT(with("\"k1\": -0.05", "\"k1\": 1e6"),
               ::testing::StartsWith("s.json: cameras[0].intrinsics.k1: the radial distortion "
                                     "scales the image corner by "));

@@ -359,9 +359,6 @@ TEST_F(HostileInput, NumbersBeyondTheirRangeAreBadInput) {
                    {F("sigma.csv") + ":2: field 'sx': standard deviation beyond the range 1e-12 "
                                      "to 1e12 scene units, got " + sigma});
   }
-  // The largest coordinate and the extreme sigmas are accepted.
-  dir_.Write("edge.csv", WithField(WithField(spots, 2, 5, "1e12"), 3, 6, "1e-12"));
-  EXPECT_EQ(Measure(cal + F("edge.csv")).exit_code, 0);
   // A calibration session and a points CSV (--apply) likewise.
   dir_.Write("far_slices.csv", WithField(ReadAll(F("slices.csv")), 5, 3, "1e300"));
   CalibrateRefused("--spots " + F("far_slices.csv") + " --out " + F("out.json"), 3,
@@ -392,12 +389,6 @@ TEST_F(HostileInput, EchoedFieldsAreEscapedAndCut) {
   MeasureRefused(cal + F("num.csv"), 3,
                  {F("num.csv") + ":2: field 'x': not a number: '1\\x07" + std::string(38, '2') +
                   "...'"});
-  // A JSON key.
-  dir_.Write("key.json", ReplaceFirst(ReadAll(F("cal.json")), "\"sources\"",
-                                      "\"\\u001b]0;owned\\u0007\": 1, \"sources\""));
-  r = MeasureRefused("--calibration " + F("key.json") + " --spots " + F("spots.csv"), 3,
-                     {"\\x1b]0;owned\\x07"});
-  EXPECT_EQ(r.err.find('\x1b'), std::string::npos) << r.err;
 }
 
 }  // namespace

@@ -12,6 +12,7 @@
 
 #include <glog/logging.h>
 
+#include "opl/core/message_text.h"
 #include "opl/model/beam_pattern.h"
 #include "opl/uncertainty/monte_carlo.h"
 
@@ -40,7 +41,8 @@ int ExitCodeForInputStatus(const Status& status) {
 }
 
 int Fail(const std::string& tool, const std::string& message, int exit_code) {
-  std::cerr << tool << ": " << message << std::endl;
+  // One line, whatever an input file put in the message (issue 19 item 7).
+  std::cerr << tool << ": " << OneLineMessage(message) << std::endl;
   return exit_code;
 }
 

@@ -4,6 +4,7 @@
 #include <map>
 
 #include "opl/core/format.h"
+#include "opl/core/message_text.h"
 #include "opl/model/beam_pattern.h"
 
 namespace opl {
@@ -84,7 +85,7 @@ Result<ModuleCalibrationResult> CalibrateModule(const std::vector<Spot>& spots,
       const Spot& first = spots[owner->second];
       return Status::InvalidArgument(
           s.where + ": slice " + std::to_string(slices[i]) + " holds spots of source '" +
-          s.source + "' and of source '" + first.source + "' (" + first.where +
+          s.source + "' and of source " + QuoteForMessage(first.source) + " (" + first.where +
           "): a slice is one grid at one screen position");
     }
     if (!by_source.count(s.source)) order.push_back(s.source);
@@ -107,7 +108,7 @@ Result<ModuleCalibrationResult> CalibrateModule(const std::vector<Spot>& spots,
       while (n < kMaxBeamsPerSide && n * n < max_id[name]) n += 2;
       if (n * n < max_id[name]) {
         return Status::InvalidArgument(
-            "source '" + name + "': beam id " + std::to_string(max_id[name]) +
+            "source " + QuoteForMessage(name) + ": beam id " + std::to_string(max_id[name]) +
             " is beyond the largest grid (" + std::to_string(kMaxBeamsPerSide) + " x " +
             std::to_string(kMaxBeamsPerSide) + " = " +
             std::to_string(kMaxBeamsPerSide * kMaxBeamsPerSide) + " beams)");

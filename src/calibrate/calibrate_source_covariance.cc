@@ -114,16 +114,27 @@ Status Calibrator::Covariance(SourceCalibrationResult* result) {
     S -= blk.Nfb * blk.Nbb_inv * blk.Nfb.transpose();
     bb.push_back(std::move(blk));
   }
-  Eigen::LDLT<Eigen::MatrixXd> ldlt(S);
-  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(S);
-  if (ldlt.info() != Eigen::Success || !(eig.eigenvalues()(0) > 1e-12 * eig.eigenvalues()(nf - 1))) {
+  // The pose and row parameters mix radians and millimetres: the test of
+  // singularity is made on S scaled to a unit diagonal, which does not change
+  // with the unit of the samples (a session in micrometres, issue 19 item 4).
+  Eigen::VectorXd equilibrate(nf);
+  for (int i = 0; i < nf; ++i) {
+    equilibrate(i) = S(i, i) > 0.0 && std::isfinite(S(i, i)) ? 1.0 / std::sqrt(S(i, i)) : 0.0;
+  }
+  const Eigen::MatrixXd Ss = equilibrate.asDiagonal() * S * equilibrate.asDiagonal();
+  Eigen::LDLT<Eigen::MatrixXd> ldlt(Ss);
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(Ss);
+  if (!(equilibrate.minCoeff() > 0.0) || ldlt.info() != Eigen::Success ||
+      !(eig.eigenvalues()(0) > 1e-12 * eig.eigenvalues()(nf - 1))) {
     return Error(StatusCode::kNoSolution,
                  "the pose is undetermined by these samples (singular normal equations): are the "
                  "slices at distinct depths?");
   }
   const double scale = (!weighted_ && dof > 0) ? result->variance_factor : 1.0;
   result->covariance_scaled = !weighted_;
-  const Eigen::MatrixXd Cff = scale * ldlt.solve(Eigen::MatrixXd::Identity(nf, nf));
+  const Eigen::MatrixXd Cff = scale * (equilibrate.asDiagonal() *
+                                       ldlt.solve(Eigen::MatrixXd::Identity(nf, nf)) *
+                                       equilibrate.asDiagonal());
   result->pose_covariance = Cff.topLeftCorner(6, 6);
 
   std::map<int, Eigen::Matrix2d> beam_cov;

@@ -1,3 +1,4 @@
+#include "opl/core/message_text.h"
 #include "opl/calibrate/shared_errors.h"
 
 #include <array>
@@ -103,14 +104,14 @@ Result<SharedErrorSummary> AddSharedErrors(const std::vector<Spot>& spots,
   for (size_t i = 0; i < spots.size(); ++i) {
     const auto s = source_index.find(spots[i].source);
     if (s == source_index.end()) {
-      return Status::InvalidArgument(spots[i].where + ": source '" + spots[i].source +
-                                     "' is not in the calibration");
+      return Status::InvalidArgument(spots[i].where + ": source " + QuoteForMessage(spots[i].source) +
+                                     " is not in the calibration");
     }
     const std::vector<CalibrationSampleResidual>& residuals = result->sources[s->second].residuals;
     const size_t k = next_sample[spots[i].source]++;
     if (k >= residuals.size()) {
       return Status::InvalidArgument("shared errors: the spots are not those the calibration "
-                                     "was solved from (source '" + spots[i].source + "')");
+                                     "was solved from (source " + QuoteForMessage(spots[i].source) + ")");
     }
     if (!residuals[k].outlier && !residuals[k].beam_dropped) used.push_back(i);
   }

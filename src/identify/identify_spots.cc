@@ -15,6 +15,7 @@
 
 #include "identify/identify_spots_internal.h"
 #include "opl/core/format.h"
+#include "opl/core/message_text.h"
 #include "opl/geometry/rotation.h"
 
 namespace opl {
@@ -55,7 +56,7 @@ Result<IdentifyResult> IdentifySpots(const ModuleCalibration& calibration, const
       }
     }
     if (!known) {
-      return Status::InvalidArgument("IdentifyOptions.expected_rotation: unknown source '" + name + "'");
+      return Status::InvalidArgument("IdentifyOptions.expected_rotation: unknown source " + QuoteForMessage(name) + "");
     }
   }
   std::vector<const Eigen::Vector3d*> expected_origin(num_sources, nullptr);
@@ -68,7 +69,7 @@ Result<IdentifyResult> IdentifySpots(const ModuleCalibration& calibration, const
       }
     }
     if (!known) {
-      return Status::InvalidArgument("IdentifyOptions.expected_origin: unknown source '" + name + "'");
+      return Status::InvalidArgument("IdentifyOptions.expected_origin: unknown source " + QuoteForMessage(name) + "");
     }
   }
   const double prior_tolerance_rad = options.expected_rotation_tolerance_deg * kPi / 180.0;
@@ -116,15 +117,15 @@ Result<IdentifyResult> IdentifySpots(const ModuleCalibration& calibration, const
       if (source < 0) {
         std::string names;
         for (const auto& s : calibration.sources) names += (names.empty() ? "" : ", ") + s.name;
-        return Status::InvalidArgument(Where(spot, i) + ": unknown source '" + spot.source +
-                                       "' (the calibration has " + names + ")");
+        return Status::InvalidArgument(Where(spot, i) + ": unknown source " + QuoteForMessage(spot.source) +
+                                       " (the calibration has " + names + ")");
       }
     }
     if (source >= 0 && spot.observation.beam_id > 0) {
       const BeamPattern& pattern = calibration.sources[source].pattern;
       if (pattern.Find(spot.observation.beam_id) == nullptr) {
         return Status::InvalidArgument(Where(spot, i) + ": beam " + std::to_string(spot.observation.beam_id) +
-                                       " is not in the pattern of source '" + spot.source + "'");
+                                       " is not in the pattern of source " + QuoteForMessage(spot.source) + "");
       }
       result.source_index[i] = source;
       result.beam_id[i] = spot.observation.beam_id;

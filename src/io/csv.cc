@@ -6,6 +6,8 @@
 #include <system_error>
 #include <unordered_set>
 
+#include "opl/core/message_text.h"
+
 namespace opl {
 namespace csv_internal {
 namespace {
@@ -170,16 +172,7 @@ std::string Lower(std::string s) {
   return s;
 }
 
-std::string Shown(const std::string& s) {
-  std::string out;
-  for (char c : s.substr(0, 40)) {
-    if (c == '\n') out += "\\n";
-    else if (c == '\r') out += "\\r";
-    else out += c;
-  }
-  if (s.size() > 40) out += "...";
-  return "'" + out + "'";
-}
+std::string Shown(const std::string& s) { return QuoteForMessage(s, 40); }
 
 size_t SkipBom(const std::string& text) {
   return text.compare(0, 3, "\xEF\xBB\xBF") == 0 ? 3 : 0;
@@ -271,6 +264,27 @@ Result<double> ParseFiniteDouble(const std::string& text, const std::string& con
   }
   if (!std::isfinite(value)) return Status::ParseError(context + "not finite: " + Shown(text));
   return value;
+}
+
+Result<double> ParseCoordinate(const std::string& text, const std::string& context) {
+  Result<double> v = ParseFiniteDouble(text, context);
+  if (v.ok() && !(std::abs(*v) <= kMaxAbsCoordinate)) {
+    return Status::ParseError(context + "beyond the limit of |value| <= 1e12 scene units, got " + text);
+  }
+  return v;
+}
+
+Result<double> ParseSigma(const std::string& text, const std::string& context) {
+  Result<double> v = ParseFiniteDouble(text, context);
+  if (!v.ok()) return v;
+  if (!(*v > 0.0)) {
+    return Status::ParseError(context + "standard deviation must be > 0, got " + text);
+  }
+  if (!(*v >= kMinSigma && *v <= kMaxSigma)) {
+    return Status::ParseError(context + "standard deviation beyond the range 1e-12 to 1e12 scene "
+                              "units, got " + text);
+  }
+  return v;
 }
 
 Result<int> ParseInt(const std::string& text, const std::string& context) {

@@ -76,10 +76,29 @@ std::string FieldContext(const std::string& name, int line, const std::string& c
 // "not a number: '12,5' (decimal commas are not supported)".
 Result<double> ParseFiniteDouble(const std::string& text, const std::string& context);
 
+// The finite range of a coordinate (spots, points CSV: |x|, |y|, |z|) and of
+// a standard deviation (sx, sy, sz), in scene units (docs/formats.md,
+// 'Limits'): a scene in micrometres a thousand km across fits; a value beyond
+// is a corrupt field, not a measurement.
+inline constexpr double kMaxAbsCoordinate = 1e12;
+inline constexpr double kMinSigma = 1e-12;
+inline constexpr double kMaxSigma = 1e12;
+
+// ParseFiniteDouble, then |value| <= kMaxAbsCoordinate: ParseError
+// "<context>beyond the limit of |value| <= 1e12 scene units, got 1e308" (the
+// text parsed as a number, so it is shown as it is).
+Result<double> ParseCoordinate(const std::string& text, const std::string& context);
+
+// ParseFiniteDouble, then kMinSigma <= value <= kMaxSigma: ParseError
+// "<context>standard deviation must be > 0, got 0" or "<context>standard
+// deviation beyond the range 1e-12 to 1e12 scene units, got 1e300".
+Result<double> ParseSigma(const std::string& text, const std::string& context);
+
 // A decimal integer that fits in int.
 Result<int> ParseInt(const std::string& text, const std::string& context);
 
-// Shows a value in a message: quoted, at most 40 characters, line breaks escaped.
+// Shows a value in a message: QuoteForMessage(text, 40) (quoted, at most 40
+// bytes, control characters escaped).
 std::string Shown(const std::string& text);
 
 // ASCII lower case.

@@ -4,6 +4,8 @@
 #include <memory>
 #include <vector>
 
+#include "opl/core/message_text.h"
+
 namespace opl {
 namespace json_internal {
 namespace {
@@ -164,7 +166,9 @@ Result<json> JsonReader::ParseText(const std::string& text) const {
 
 Status JsonReader::Error(const std::string& path, const std::string& what) const {
   const std::string full = prefix_.empty() ? path : (path.empty() ? prefix_ : prefix_ + "." + path);
-  return Status::ParseError(name_ + ": " + (full.empty() ? "" : full + ": ") + what);
+  // A path may hold a key from the file: escaped and cut (issue 19 item 7).
+  return Status::ParseError(name_ + ": " + (full.empty() ? "" : SafeForMessage(full) + ": ") +
+                            what);
 }
 
 std::string JsonReader::Describe(const json& v) {

@@ -30,7 +30,7 @@ Result<PointsCsv> PointsCsv::Parse(const std::string& text, const std::string& n
   for (const csv_internal::CsvRecord& row : table.rows) {
     Eigen::Vector3d p;
     for (int k = 0; k < 3; ++k) {
-      Result<double> v = csv_internal::ParseFiniteDouble(
+      Result<double> v = csv_internal::ParseCoordinate(
           row.fields[out.column_[k]], csv_internal::FieldContext(name, row.line, kAxis[k]));
       if (!v.ok()) return v.status();
       p[k] = *v;

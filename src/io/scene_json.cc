@@ -13,6 +13,7 @@
 #include "opl/core/format.h"
 #include "opl/io/atomic_file.h"
 #include "opl/io/module_design_json.h"
+#include "opl/vision/intrinsics_limits.h"
 #include "opl/vision/shot_image.h"
 
 namespace opl {
@@ -220,6 +221,9 @@ class SceneReader : public json_internal::JsonReader {
     }
     if (!(in.fy_px > 0.0)) {
       return Error(Join(ipath, "fy"), "must be > 0, got " + FormatNumber(in.fy_px));
+    }
+    if (const IntrinsicsFault fault = FindImplausibleIntrinsics(in); !fault.field.empty()) {
+      return Error(Join(ipath, fault.field), fault.what);
     }
 
     const json* pose = Find(c, "pose");

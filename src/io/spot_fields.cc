@@ -26,7 +26,7 @@ Status AppendSpot(const std::vector<std::string>& fields, int line, const std::s
   const char* const kAxis[3] = {"x", "y", "z"};
   for (int k = 0; k < 3; ++k) {
     Result<double> v =
-        ParseFiniteDouble(fields[columns.xyz[k]], FieldContext(name, line, kAxis[k]));
+        ParseCoordinate(fields[columns.xyz[k]], FieldContext(name, line, kAxis[k]));
     if (!v.ok()) return v.status();
     spot.observation.point_in_scene[k] = *v;
   }
@@ -36,11 +36,8 @@ Status AppendSpot(const std::vector<std::string>& fields, int line, const std::s
     for (int k = 0; k < 3; ++k) {
       const std::string& text = fields[columns.sigma[k]];
       const std::string context = FieldContext(name, line, kSigma[k]);
-      Result<double> v = ParseFiniteDouble(text, context);
+      Result<double> v = ParseSigma(text, context);
       if (!v.ok()) return v.status();
-      if (!(*v > 0.0)) {
-        return Status::ParseError(context + "standard deviation must be > 0, got " + text);
-      }
       sigma[k] = *v;
     }
     spot.observation.cov_in_scene = sigma.cwiseAbs2().asDiagonal().toDenseMatrix();

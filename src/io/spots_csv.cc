@@ -5,6 +5,7 @@
 #include "io/csv.h"
 #include "io/spot_fields.h"
 #include "opl/core/format.h"
+#include "opl/core/message_text.h"
 #include "opl/io/atomic_file.h"
 
 namespace opl {
@@ -92,13 +93,13 @@ Result<std::string> FormatSpotsCsv(const std::vector<Spot>& spots,
     const Spot& s = spots[i];
     const Eigen::Vector3d& p = s.observation.point_in_scene;
     if (s.observation.beam_id < 0) {
-      return Status::InvalidArgument("spot " + std::to_string(i) + " (source '" + s.source +
-                                     "'): beam id must be >= 1 (or 0: unassigned), got " +
+      return Status::InvalidArgument("spot " + std::to_string(i) + " (source " + QuoteForMessage(s.source) +
+                                     "): beam id must be >= 1 (or 0: unassigned), got " +
                                      std::to_string(s.observation.beam_id));
     }
     if (!p.allFinite()) {
-      return Status::InvalidArgument("spot " + std::to_string(i) + " (source '" + s.source +
-                                     "', beam " + std::to_string(s.observation.beam_id) +
+      return Status::InvalidArgument("spot " + std::to_string(i) + " (source " + QuoteForMessage(s.source) +
+                                     ", beam " + std::to_string(s.observation.beam_id) +
                                      "): point is not finite");
     }
     // An unassigned beam (id 0) is written as an empty field, which reads back as 0.
@@ -110,8 +111,8 @@ Result<std::string> FormatSpotsCsv(const std::vector<Spot>& spots,
       for (int k = 0; k < 3; ++k) {
         const double sigma = std::sqrt(C(k, k));
         if (!(std::isfinite(sigma) && sigma > 0.0)) {
-          return Status::InvalidArgument("spot " + std::to_string(i) + " (source '" + s.source +
-                                         "', beam " + std::to_string(s.observation.beam_id) +
+          return Status::InvalidArgument("spot " + std::to_string(i) + " (source " + QuoteForMessage(s.source) +
+                                         ", beam " + std::to_string(s.observation.beam_id) +
                                          "): standard deviation is not finite and > 0");
         }
         out += "," + FormatRoundTrip(sigma);

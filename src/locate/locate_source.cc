@@ -684,9 +684,21 @@ Result<LocateResult> LocateSource(const BeamPattern& pattern,
   const double chi2 = assessed.chi2, sum_sq_rad = assessed.sum_sq_rad;
   const int used = assessed.used;
   const int dof = 2 * used - 6;
-  Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(H);
-  const Eigen::Matrix<double, 6, 6> cov = ldlt.solve(Eigen::Matrix<double, 6, 6>::Identity());
-  if (ldlt.info() != Eigen::Success || !cov.allFinite() || !(ldlt.vectorD().minCoeff() > 0.0) ||
+  // Rotations are in radians, the origin in scene units: the test of
+  // singularity is made on H scaled to a unit diagonal (D H D, D_ii =
+  // 1 / sqrt(H_ii)), which does not change when the scene unit does (the same
+  // spots in micrometres or in metres, issue 19 item 4).
+  Eigen::Matrix<double, 6, 1> equilibrate;
+  for (int i = 0; i < 6; ++i) {
+    equilibrate(i) = H(i, i) > 0.0 && std::isfinite(H(i, i)) ? 1.0 / std::sqrt(H(i, i)) : 0.0;
+  }
+  const Eigen::Matrix<double, 6, 6> Hs = equilibrate.asDiagonal() * H * equilibrate.asDiagonal();
+  Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(Hs);
+  const Eigen::Matrix<double, 6, 6> cov = equilibrate.asDiagonal() *
+                                          ldlt.solve(Eigen::Matrix<double, 6, 6>::Identity()) *
+                                          equilibrate.asDiagonal();
+  if (!(equilibrate.minCoeff() > 0.0) || ldlt.info() != Eigen::Success || !cov.allFinite() ||
+      !(ldlt.vectorD().minCoeff() > 0.0) ||
       ldlt.vectorD().minCoeff() < 1e-14 * ldlt.vectorD().maxCoeff()) {
     return Status::NoSolution("degenerate spots: the pose is not determined by them "
                               "(normal matrix singular)");

@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "opl/core/format.h"
+#include "opl/core/message_text.h"
 
 namespace opl {
 namespace {
@@ -89,13 +90,13 @@ Result<MeasureReport> MeasureScale(const ModuleCalibration& calibration,
     const int beam_id = spot.observation.beam_id;
     const SourceCalibration* source = calibration.FindSource(spot.source);
     if (source == nullptr) {
-      return Status::InvalidArgument(where + ": unknown source '" + spot.source +
-                                     "' (the calibration has " + known_sources + ")");
+      return Status::InvalidArgument(where + ": unknown source " + QuoteForMessage(spot.source) +
+                                     " (the calibration has " + known_sources + ")");
     }
     if (source->pattern.Find(beam_id) == nullptr) {
       const int n = source->pattern.beams_per_side();
       return Status::InvalidArgument(
-          where + ": source '" + spot.source + "' has no beam " + std::to_string(beam_id) +
+          where + ": source " + QuoteForMessage(spot.source) + " has no beam " + std::to_string(beam_id) +
           " in the calibration (" + std::to_string(n) + " x " + std::to_string(n) + " grid, " +
           std::to_string(source->pattern.beams().size()) + " beams calibrated)");
     }
@@ -104,8 +105,8 @@ Result<MeasureReport> MeasureScale(const ModuleCalibration& calibration,
       const Spot& first = spots[it->second];
       const std::string first_where =
           first.where.empty() ? "spot " + std::to_string(it->second + 1) : first.where;
-      return Status::InvalidArgument(where + ": duplicate spot of source '" + spot.source +
-                                     "' beam " + std::to_string(beam_id) + " (also at " +
+      return Status::InvalidArgument(where + ": duplicate spot of source " + QuoteForMessage(spot.source) +
+                                     " beam " + std::to_string(beam_id) + " (also at " +
                                      first_where + ")");
     }
     if (!spot.observation.point_in_scene.allFinite()) {
@@ -127,8 +128,8 @@ Result<MeasureReport> MeasureScale(const ModuleCalibration& calibration,
     }
     Result<LocateResult> result = LocateSource(source.pattern, group->second, options.locate);
     if (!result.ok()) {
-      return Status(result.status().code(), "source '" + source.name +
-                                                "': " + result.status().message() +
+      return Status(result.status().code(), "source " + QuoteForMessage(source.name) +
+                                                ": " + result.status().message() +
                                                 identified_suffix);
     }
     LocatedOrigin origin;

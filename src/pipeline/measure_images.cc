@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "opl/core/format.h"
+#include "opl/core/message_text.h"
 
 namespace opl {
 
@@ -164,12 +165,12 @@ Result<ImageMeasureReport> MeasureScaleFromImages(const Scene& scene,
       Spot& spot = report.spots[members[i]];
       if (!group.lasers.empty() &&
           std::find(group.lasers.begin(), group.lasers.end(), name) == group.lasers.end()) {
-        report.metadata_conflicts.push_back(spot.where + " identified as source '" + name +
-                                            "', which was off in its images: not used");
+        report.metadata_conflicts.push_back(spot.where + " identified as source " + QuoteForMessage(name) +
+                                            ", which was off in its images: not used");
         continue;
       }
       if (!seen.insert({name, beam}).second) {
-        report.metadata_conflicts.push_back(spot.where + " is source '" + name + "' beam " +
+        report.metadata_conflicts.push_back(spot.where + " is source " + QuoteForMessage(name) + " beam " +
                                             std::to_string(beam) +
                                             " again (another exposure group has it): not used");
         continue;

@@ -1,11 +1,13 @@
 #include "opl/vision/camera_model.h"
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 
 #include <Eigen/Dense>
 
 #include "opl/core/format.h"
+#include "opl/vision/intrinsics_limits.h"
 
 namespace opl {
 
@@ -50,6 +52,82 @@ Status CameraIntrinsics::Validate() const {
                                    FormatNumber(fx_px) + ", fy = " + FormatNumber(fy_px));
   }
   return Status::Ok();
+}
+
+IntrinsicsFault FindImplausibleIntrinsics(const CameraIntrinsics& in) {
+  const double side = std::max(in.width_px, in.height_px);
+  const double f_lo = kMinFocalPerImageSide * side, f_hi = kMaxFocalPerImageSide * side;
+  const std::string f_range = "must be in [" + FormatNumber(f_lo, 6) + ", " +
+                              FormatNumber(f_hi, 6) + "] px (0.05 to 100 times the image's " +
+                              "larger side, " + FormatNumber(side, 6) + " px), got ";
+  if (!(in.fx_px >= f_lo && in.fx_px <= f_hi)) return {"fx", f_range + FormatNumber(in.fx_px)};
+  if (!(in.fy_px >= f_lo && in.fy_px <= f_hi)) return {"fy", f_range + FormatNumber(in.fy_px)};
+  const double m = kPrincipalPointMargin;
+  if (!(in.cx_px >= -m * in.width_px && in.cx_px <= (1.0 + m) * in.width_px)) {
+    return {"cx", "the principal point must lie within the image widened by half its width on "
+                  "each side, [" + FormatNumber(-m * in.width_px, 6) + ", " +
+                  FormatNumber((1.0 + m) * in.width_px, 6) + "] px, got " +
+                  FormatNumber(in.cx_px)};
+  }
+  if (!(in.cy_px >= -m * in.height_px && in.cy_px <= (1.0 + m) * in.height_px)) {
+    return {"cy", "the principal point must lie within the image widened by half its height on "
+                  "each side, [" + FormatNumber(-m * in.height_px, 6) + ", " +
+                  FormatNumber((1.0 + m) * in.height_px, 6) + "] px, got " +
+                  FormatNumber(in.cy_px)};
+  }
+  if (!(std::abs(in.p1) <= kMaxTangential)) {
+    return {"p1", "tangential distortion must be within +-0.5, got " + FormatNumber(in.p1)};
+  }
+  if (!(std::abs(in.p2) <= kMaxTangential)) {
+    return {"p2", "tangential distortion must be within +-0.5, got " + FormatNumber(in.p2)};
+  }
+  // The farthest image corner, in normalized (distorted) coordinates.
+  double corner = 0.0;
+  for (const double u : {-0.5, in.width_px - 0.5}) {
+    for (const double v : {-0.5, in.height_px - 0.5}) {
+      corner = std::max(corner, std::hypot((u - in.cx_px) / in.fx_px, (v - in.cy_px) / in.fy_px));
+    }
+  }
+  const auto rd = [&](double r) {
+    const double r2 = r * r;
+    return r * (1.0 + r2 * (in.k1 + r2 * (in.k2 + r2 * in.k3)));
+  };
+  const auto blamed = [&](double r) {
+    const double r2 = r * r;
+    const double t1 = std::abs(in.k1 * r2), t2 = std::abs(in.k2 * r2 * r2),
+                 t3 = std::abs(in.k3 * r2 * r2 * r2);
+    return t1 >= t2 && t1 >= t3 ? "k1" : t2 >= t3 ? "k2" : "k3";
+  };
+  // Walk out from the centre until r_d reaches the corner (barrel distortion
+  // needs r beyond it): r_d must rise at every step.
+  const int kSteps = 20000;
+  const double h = corner / 2000.0;
+  double previous = 0.0;
+  for (int i = 1; i <= kSteps; ++i) {
+    const double r = i * h;
+    const double now = rd(r);
+    if (!(now > previous)) {
+      return {blamed(r), "the distortion folds back inside the image (r_d stops increasing at "
+                         "r = " + FormatNumber(r, 3) + ", r_d = " + FormatNumber(previous, 3) +
+                         "; the image corner is at r_d = " + FormatNumber(corner, 3) +
+                         ", normalized)"};
+    }
+    if (now >= corner) {
+      const double scale = now / r;
+      if (!(scale >= 1.0 / kMaxRadialScale && scale <= kMaxRadialScale)) {
+        return {blamed(r), "the radial distortion scales the image corner by " +
+                               FormatNumber(scale, 3) + " (r = " + FormatNumber(r, 3) +
+                               " -> r_d = " + FormatNumber(corner, 3) +
+                               ", normalized); at most a factor 3 either way"};
+      }
+      return {};
+    }
+    previous = now;
+  }
+  // r_d stays below the corner out to 10 corner radii: it compresses too much.
+  return {blamed(kSteps * h), "the radial distortion squeezes the image corner by more than a "
+                              "factor 3 (r_d(" + FormatNumber(kSteps * h, 3) + ") = " +
+                              FormatNumber(previous, 3) + " < " + FormatNumber(corner, 3) + ")"};
 }
 
 bool ProjectToPixel(const CameraIntrinsics& intrinsics, const Eigen::Vector3d& point_in_cam,

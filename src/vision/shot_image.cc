@@ -3,7 +3,10 @@
 #include <filesystem>
 #include <algorithm>
 #include <fstream>
+#include <iterator>
 #include <new>
+#include <utility>
+#include <vector>
 
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -99,11 +102,48 @@ Status CheckImageSize(const std::string& path, long long width, long long height
       std::to_string(kMaxImagePixels / 1000000) + " megapixels");
 }
 
+// A PNG's bytes with its ancillary chunks left out, except tRNS (which
+// changes the pixels): libpng prints "libpng warning: ..." on stderr for some
+// of them (an iCCP profile it dislikes, a bad CRC in a tEXt chunk), which
+// would add lines to the tools' one-line stderr (issue 19 item 7); none of
+// them changes the decoded pixels OpenCV returns. Anything else (not a PNG, a
+// truncated chunk) is returned unchanged for the decoder to judge.
+std::vector<unsigned char> WithoutAncillaryPngChunks(std::vector<unsigned char> bytes) {
+  static const unsigned char kPng[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n'};
+  if (bytes.size() < 8 || !std::equal(kPng, kPng + 8, bytes.begin())) return bytes;
+  std::vector<unsigned char> out(bytes.begin(), bytes.begin() + 8);
+  out.reserve(bytes.size());
+  size_t at = 8;
+  while (at + 12 <= bytes.size()) {
+    const unsigned long long length = BigEndian(bytes.data() + at, 4);
+    if (length > bytes.size() - at - 12) return bytes;
+    const unsigned char* type = bytes.data() + at + 4;
+    const bool ancillary = (type[0] & 0x20) != 0;
+    const bool trns = std::equal(type, type + 4, "tRNS");
+    if (!ancillary || trns) {
+      out.insert(out.end(), bytes.begin() + at, bytes.begin() + at + 12 + length);
+    }
+    at += 12 + length;
+    if (std::equal(type, type + 4, "IEND")) break;
+  }
+  return out;
+}
+
 // Reads and converts; may throw cv::Exception (caught by ReadShotImage).
 Result<ShotImage> DecodeShotImage(const std::string& path, SpotChannel channel) {
+  std::vector<unsigned char> bytes;
+  {
+    std::ifstream in(path, std::ios::binary);
+    bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+    if (!in.good() && !in.eof()) {
+      return Status::IoError(path + ": cannot read the image");
+    }
+  }
+  bytes = WithoutAncillaryPngChunks(std::move(bytes));
   // Sensor pixels: the EXIF orientation is not applied (header).
-  cv::Mat image =
-      cv::imread(path, cv::IMREAD_ANYDEPTH | cv::IMREAD_ANYCOLOR | cv::IMREAD_IGNORE_ORIENTATION);
+  cv::Mat image = bytes.empty() ? cv::Mat()
+                                : cv::imdecode(bytes, cv::IMREAD_ANYDEPTH | cv::IMREAD_ANYCOLOR |
+                                                          cv::IMREAD_IGNORE_ORIENTATION);
   if (image.empty()) return Status::IoError(path + ": cannot read the image (not an image file?)");
   OPL_RETURN_IF_ERROR(CheckImageSize(path, image.cols, image.rows));
   if (image.depth() != CV_8U && image.depth() != CV_16U) {

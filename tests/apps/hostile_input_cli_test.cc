@@ -3,6 +3,7 @@
 // with the documented exit code (3 for a bad file, 2 for an option out of
 // range), ONE line on stderr naming the file (and line or field) or the
 // option, nothing on stdout, and no output file (nor a temporary one) left.
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <string>
@@ -323,6 +324,71 @@ TEST_F(HostileInput, ContradictorySeparationsAndScenesWithoutLasers) {
   CalibrateRefused("--images " + F("shots") + " --scene " + F("dark.json") + " --design " +
                        kExamples + "/scene_small_module.json --out " + F("m.json"),
                    3, {no_lasers});
+}
+
+// `csv` with field `column` (0-based) of its line `line` (1-based) set to
+// `value` (unquoted fields only; `value` is written as given).
+std::string WithField(const std::string& csv, int line, int column, const std::string& value) {
+  size_t start = 0;
+  for (int i = 1; i < line; ++i) start = csv.find('\n', start) + 1;
+  size_t end = csv.find('\n', start);
+  std::string row = csv.substr(start, end - start);
+  size_t from = 0;
+  for (int i = 0; i < column; ++i) from = row.find(',', from) + 1;
+  const size_t to = std::min(row.find(',', from), row.size());
+  row.replace(from, to - from, value);
+  return csv.substr(0, start) + row + csv.substr(end);
+}
+
+// 6. A spot at x = 1e308 gave exit 4 "all 121 spots lie on one line";
+// coordinates and sigmas have a finite range (docs/formats.md, 'Limits').
+TEST_F(HostileInput, NumbersBeyondTheirRangeAreBadInput) {
+  const std::string spots = ReadAll(F("spots.csv"));
+  const std::string cal = "--calibration " + F("cal.json") + " --spots ";
+  for (const std::string x : {"1e308", "-1e308", "1.5e12"}) {
+    dir_.Write("far.csv", WithField(spots, 2, 2, x));
+    MeasureRefused(cal + F("far.csv"), 3,
+                   {F("far.csv") + ":2: field 'x': beyond the limit of |value| <= 1e12 scene "
+                                   "units, got " + x});
+  }
+  dir_.Write("far.csv", WithField(spots, 3, 4, "-2e15"));
+  MeasureRefused(cal + F("far.csv"), 3, {F("far.csv") + ":3: field 'z': beyond the limit"});
+  for (const std::string sigma : {"1e300", "1e-300", "2e12"}) {
+    dir_.Write("sigma.csv", WithField(spots, 2, 5, sigma));
+    MeasureRefused(cal + F("sigma.csv"), 3,
+                   {F("sigma.csv") + ":2: field 'sx': standard deviation beyond the range 1e-12 "
+                                     "to 1e12 scene units, got " + sigma});
+  }
+  // A calibration session and a points CSV (--apply) likewise.
+  dir_.Write("far_slices.csv", WithField(ReadAll(F("slices.csv")), 5, 3, "1e300"));
+  CalibrateRefused("--spots " + F("far_slices.csv") + " --out " + F("out.json"), 3,
+                   {F("far_slices.csv") + ":5: field 'y': beyond the limit"});
+  dir_.Write("pts.csv", "id,x,y,z\np1,1,2,3\np2,1,2,1e308\n");
+  MeasureRefused(cal + F("spots.csv") + " --apply " + F("pts.csv") + " --out " + F("o.csv"), 3,
+                 {F("pts.csv") + ":3: field 'z': beyond the limit of |value| <= 1e12"});
+}
+
+// 7. Control characters from a file (an ANSI escape in a source name, a line
+// break in a quoted field) reached the terminal raw; a long field was echoed
+// whole.
+TEST_F(HostileInput, EchoedFieldsAreEscapedAndCut) {
+  const std::string spots = ReadAll(F("spots.csv"));
+  const std::string cal = "--calibration " + F("cal.json") + " --spots ";
+  dir_.Write("esc.csv", WithField(spots, 2, 0, "\x1b[2J\x1b[31mA"));
+  RunResult r = MeasureRefused(cal + F("esc.csv"), 3,
+                               {F("esc.csv") + ":2: unknown source '\\x1b[2J\\x1b[31mA'"});
+  EXPECT_EQ(r.err.find('\x1b'), std::string::npos) << r.err;
+  dir_.Write("newline.csv", WithField(spots, 2, 0, "\"A\nB\r\"") );
+  MeasureRefused(cal + F("newline.csv"), 3, {"unknown source 'A\\nB\\r'"});
+  dir_.Write("long.csv", WithField(spots, 2, 0, std::string(5000, 'Q')));
+  r = MeasureRefused(cal + F("long.csv"), 3,
+                     {"unknown source '" + std::string(200, 'Q') + "...'"});
+  EXPECT_LT(r.err.size(), 600u);
+  // A number field: shown quoted, escaped, cut at 40.
+  dir_.Write("num.csv", WithField(spots, 2, 2, "1\x07" + std::string(100, '2')));
+  MeasureRefused(cal + F("num.csv"), 3,
+                 {F("num.csv") + ":2: field 'x': not a number: '1\\x07" + std::string(38, '2') +
+                  "...'"});
 }
 
 }  // namespace

@@ -6,6 +6,7 @@
 #include <cstdlib>
 #include <string>
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
@@ -68,6 +69,54 @@ TEST(SceneJson, CameraSizesWithinTheImageLimit) {
   scene["cameras"][1]["height_px"] = 20000;
   EXPECT_EQ(Message(scene.dump()),
             "s.json: cameras[1]: 20000 x 20000 pixels is beyond the limit of 160 megapixels");
+}
+
+// Issue 19 item 6: fx = 1e308 or k1 = 1e6 were read and the failure came
+// later, blamed on the images ("no tag is seen in two images").
+TEST(SceneJson, IntrinsicsArePlausible) {
+  auto with = [](const std::string& from, const std::string& to) {
+    std::string camera = kCamera;
+    const size_t at = camera.find(from);
+    EXPECT_NE(at, std::string::npos) << from;
+    if (at != std::string::npos) camera.replace(at, from.size(), to);
+    return Message(Doc("[" + camera + "]"));
+  };
+  EXPECT_EQ(Message(Doc()), "OK");
+  const std::string f_range =
+      "must be in [16, 32000] px (0.05 to 100 times the image's larger side, 320 px), got ";
+  EXPECT_EQ(with("\"fx\": 300", "\"fx\": 1e308"),
+            "s.json: cameras[0].intrinsics.fx: " + f_range + "1e+308");
+  EXPECT_EQ(with("\"fy\": 300", "\"fy\": 10"), "s.json: cameras[0].intrinsics.fy: " + f_range + "10");
+  EXPECT_EQ(with("\"cx\": 159.5", "\"cx\": 1e6"),
+            "s.json: cameras[0].intrinsics.cx: the principal point must lie within the image "
+            "widened by half its width on each side, [-160, 480] px, got 1000000");
+  EXPECT_EQ(with("\"cy\": 119.5", "\"cy\": -200"),
+            "s.json: cameras[0].intrinsics.cy: the principal point must lie within the image "
+            "widened by half its height on each side, [-120, 360] px, got -200");
+  // The corner is at r = 0.667 (normalized): r (1 - r^2) peaks at r = 0.577.
+  EXPECT_EQ(with("\"k1\": -0.05", "\"k1\": -1"),
+            "s.json: cameras[0].intrinsics.k1: the distortion folds back inside the image (r_d "
+            "stops increasing at r = 0.578, r_d = 0.385; the image corner is at r_d = 0.667, "
+            "normalized)");
+  EXPECT_EQ(with("\"k1\": -0.05", "\"k1\": -0.05, \"k3\": -40"),
+            "s.json: cameras[0].intrinsics.k3: the distortion folds back inside the image (r_d "
+            "stops increasing at r = 0.39, r_d = 0.332; the image corner is at r_d = 0.667, "
+            "normalized)");
+  // Monotonic but absurd: the corner would be at r = 0.009.
+  EXPECT_THAT(with("\"k1\": -0.05", "\"k1\": 1e6"),
+              ::testing::StartsWith("s.json: cameras[0].intrinsics.k1: the radial distortion "
+                                    "scales the image corner by "));
+  EXPECT_THAT(with("\"k1\": -0.05", "\"p1\": 2"),
+              ::testing::StartsWith("s.json: cameras[0].intrinsics.p1: tangential distortion"));
+  // Strong but real lenses pass.
+  EXPECT_EQ(with("\"k1\": -0.05", "\"k1\": -0.3, \"k2\": 0.1"), "OK");
+  EXPECT_EQ(with("\"k1\": -0.05", "\"k1\": 0.4"), "OK");
+  // Every bundled scene passes.
+  for (const char* name : {"scene_small.json", "scene_clutter.json", "scene_18mp.json",
+                           "calibration_session_small.json"}) {
+    Result<Scene> scene = ReadSceneJson(ExamplePath(name));
+    EXPECT_TRUE(scene.ok()) << name << ": " << scene.status().message();
+  }
 }
 
 TEST(SceneJson, ReadsTheSmallExample) {

@@ -8,9 +8,23 @@
 #include <gtest/gtest.h>
 
 #include "io/temp_dir.h"
+#include "opl/core/message_text.h"
 
 namespace opl {
 namespace {
+
+// opl::SafeForMessage / QuoteForMessage (opl/core/message_text.h), which every
+// reader uses to echo file content (issue 19 item 7).
+TEST(SafeForMessage, EscapesControlCharactersAndCuts) {
+  EXPECT_EQ(SafeForMessage("A\x1b[31m\n\r\t\x7f\x01z"), "A\\x1b[31m\\n\\r\\t\\x7f\\x01z");
+  EXPECT_EQ(QuoteForMessage("cam0"), "'cam0'");
+  EXPECT_EQ(SafeForMessage(std::string(300, 'a')), std::string(200, 'a') + "...");
+  EXPECT_EQ(SafeForMessage("abcdef", 3), "abc...");
+  // Not inside a UTF-8 character: "\xc3\xa9" is one (e acute).
+  EXPECT_EQ(SafeForMessage("ab\xc3\xa9", 3), "ab...");
+  EXPECT_EQ(SafeForMessage("ab\xc3\xa9", 4), "ab\xc3\xa9");
+  EXPECT_EQ(OneLineMessage("a\nb\x1b"), "a\\nb\\x1b");
+}
 
 using ::testing::HasSubstr;
 
@@ -260,10 +274,11 @@ TEST(SpotsCsv, MalformedQuotes) {
             "s.csv:2: quote inside an unquoted field (quote the whole field)");
 }
 
+// Within the coordinate limit of 1e12 (docs/formats.md, Limits).
 TEST(SpotsCsv, FormatThenParseIsBitExact) {
   std::vector<Spot> spots(3);
   const double tricky[] = {0.1, 1.0 / 3.0, -2.0 / 7.0, 1e-300, 123456789.123456789,
-                           std::nextafter(1.0, 2.0), -0.0, 5e-324, 1.7976931348623157e308};
+                           std::nextafter(1.0, 2.0), -0.0, 5e-324, 999999999999.99988};
   int k = 0;
   for (size_t i = 0; i < spots.size(); ++i) {
     spots[i].source = i == 1 ? "with,comma \"q\"" : "A";

@@ -104,6 +104,37 @@ TEST(ShotImage, RedLaserSpotKeepsItsContrastInTheRedChannel) {
   EXPECT_EQ(cv::countNonZero(diff), 0);
 }
 
+// Issue 19 item 7: libpng printed "libpng warning: tEXt: CRC error" (and
+// iCCP complaints) on stderr, adding lines to the tools' one-line output.
+TEST(ShotImage, AncillaryPngChunksPrintNoWarning) {
+  cv::Mat image(16, 24, CV_8UC1);
+  for (int y = 0; y < image.rows; ++y) {
+    for (int x = 0; x < image.cols; ++x) image.at<uchar>(y, x) = static_cast<uchar>(7 * x + y);
+  }
+  std::vector<uchar> png;
+  ASSERT_TRUE(cv::imencode(".png", image, png));
+  // After IHDR (8 + 25 bytes): a tEXt chunk whose CRC is wrong.
+  const std::string text = "Comment\0hello";
+  std::string chunk = std::string("\0\0\0", 3) + static_cast<char>(text.size()) + "tEXt" + text +
+                      std::string("\xde\xad\xbe\xef", 4);
+  std::string bytes(png.begin(), png.end());
+  bytes.insert(33, chunk);
+  testing_support::TempDir dir;
+  const std::string path = dir.Write("bad_crc.png", bytes);
+  // The channel: OpenCV's own read prints the warning.
+  ::testing::internal::CaptureStderr();
+  const cv::Mat direct = cv::imread(path, cv::IMREAD_UNCHANGED);
+  const std::string printed_by_opencv = ::testing::internal::GetCapturedStderr();
+  EXPECT_THAT(printed_by_opencv, ::testing::HasSubstr("libpng warning"));
+  ::testing::internal::CaptureStderr();
+  Result<ShotImage> shot = ReadShotImage(path, SpotChannel::kRed);
+  EXPECT_EQ(::testing::internal::GetCapturedStderr(), "");
+  ASSERT_TRUE(shot.ok()) << shot.status().message();
+  cv::Mat diff;
+  cv::absdiff(shot->for_tags, image, diff);
+  EXPECT_EQ(cv::countNonZero(diff), 0);
+}
+
 TEST(ShotImage, Errors) {
   testing_support::TempDir dir;
   Result<ShotImage> missing = ReadShotImage(dir.File("none.png"), SpotChannel::kRed);

@@ -25,8 +25,9 @@
 // of the same branch: JPEG 1765-1831 ms, spots 251-289 ms per image.
 //
 // Run by hand (the ctest smoke run skips BM_Scene18MP_.*):
-//   opl_bench --benchmark_filter='BM_Scene18MP_(JpegImagesToScale|ReferenceDecodeEightJpegs)' \
+//   opl_bench --benchmark_filter='BM_Scene18MP_(JpegImagesToScale|ReferenceDecodeEightJpegs)'
 //             --benchmark_repetitions=3 --benchmark_report_aggregates_only=true
+// (one command line).
 #include <atomic>
 #include <cstdlib>
 #include <filesystem>

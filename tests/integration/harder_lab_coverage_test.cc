@@ -33,6 +33,7 @@
 #include "opl/lab/render_scene.h"
 #include "opl/pipeline/measure_images.h"
 #include "opl/sim/module_design.h"
+#include "support/lab_truth.h"
 #include "support/scene_images.h"
 
 namespace opl {
@@ -90,58 +91,17 @@ Outcome MeasureSeed(const Scene& base, uint64_t seed) {
   for (const std::string& w : report->front_end.warnings) {
     out.lossy_jpeg_warning = out.lossy_jpeg_warning || w.find("lossy JPEG") != std::string::npos;
   }
-  // Truth fit and wrong assignments.
-  std::map<std::pair<std::string, int>, Eigen::Vector3d> true_point;
-  for (const SceneSpotTruth& t : truth->spots()) true_point[{t.source, t.beam}] = t.point_in_scene;
-  std::vector<Eigen::Vector3d> measured, truths;
-  for (const Spot& spot : report->spots) {
-    if (!spot.assigned()) continue;
-    measured.push_back(spot.observation.point_in_scene);
-    truths.push_back(true_point.at({spot.source, spot.observation.beam_id}));
-  }
-  out.identified = static_cast<int>(measured.size());
-  if (out.identified >= 4) {
-    Eigen::Matrix3Xd src(3, out.identified), dst(3, out.identified);
-    for (int i = 0; i < out.identified; ++i) {
-      src.col(i) = measured[static_cast<size_t>(i)];
-      dst.col(i) = truths[static_cast<size_t>(i)];
-    }
-    const Eigen::Matrix4d t = Eigen::umeyama(src, dst, true);
-    out.s_true = t.topLeftCorner<3, 3>().col(0).norm();
-    for (int i = 0; i < out.identified; ++i) {
-      const Eigen::Vector3d r =
-          t.topLeftCorner<3, 3>() * src.col(i) + t.topRightCorner<3, 1>() - dst.col(i);
-      out.wrong += r.norm() > 5.0 ? 1 : 0;
-    }
-  }
+  const test::TruthFit fit = test::FitToTruth(*report, *truth);
+  out.identified = fit.points;
+  out.wrong = fit.wrong;
+  out.s_true = fit.scale;
   out.s = report->measure.scale.scale_factor;
   out.u = report->measure.scale.u_scale_factor;
-  out.z = out.u > 0.0 ? (out.s - out.s_true) / out.u : 0.0;
-  // Recall and false spots against the truth's pixels.
-  for (size_t i = 0; i < scene.shots.size(); ++i) {
-    if (scene.shots[i].lasers.empty()) continue;
-    Result<RenderedShot> shot = truth->RenderShot(static_cast<int>(i));
-    if (!shot.ok()) continue;
-    const std::vector<DetectedSpot>& kept = report->front_end.images[i].spots;
-    for (const SpotView& v : shot->spots) {
-      if (!v.visible) continue;
-      ++out.visible;
-      for (const DetectedSpot& d : kept) {
-        if ((Eigen::Vector2d(d.u_px, d.v_px) - v.center_px).norm() < 1.0) {
-          ++out.found;
-          break;
-        }
-      }
-    }
-    for (const DetectedSpot& d : kept) {
-      bool near = false;
-      for (const SpotView& v : shot->spots) {
-        near = near || (v.center_px.allFinite() &&
-                        (Eigen::Vector2d(d.u_px, d.v_px) - v.center_px).norm() < 1.0);
-      }
-      out.false_spots += near ? 0 : 1;
-    }
-  }
+  out.z = out.u > 0.0 && fit.points >= 4 ? (out.s - out.s_true) / out.u : 0.0;
+  const test::SpotCounts counts = test::CountSpots(*truth, *report);
+  out.visible = counts.visible;
+  out.found = counts.found;
+  out.false_spots = counts.false_spots;
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return out;
 }

@@ -21,6 +21,7 @@
 #include "opl/pipeline/measure_images.h"
 #include "opl/pipeline/measure_overlays.h"
 #include "opl/sim/module_design.h"
+#include "support/lab_truth.h"
 #include "support/scene_images.h"
 
 namespace opl {
@@ -52,76 +53,6 @@ Scene ClutteredScene() {
   return s;
 }
 
-struct Counts {
-  int visible = 0;  // true spots inside the lit images
-  int found = 0;    // of those, with a kept detection within 1 px
-  int false_spots = 0;  // kept detections farther than 1 px from every true spot
-};
-
-Counts CountSpots(const SceneRenderer& truth, const ImageMeasureReport& report) {
-  Counts c;
-  for (size_t i = 0; i < truth.scene().shots.size(); ++i) {
-    if (truth.scene().shots[i].lasers.empty()) continue;
-    Result<RenderedShot> shot = truth.RenderShot(static_cast<int>(i));
-    EXPECT_TRUE(shot.ok());
-    const std::vector<DetectedSpot>& kept = report.front_end.images[i].spots;
-    for (const SpotView& v : shot->spots) {
-      if (!v.visible) continue;
-      ++c.visible;
-      for (const DetectedSpot& d : kept) {
-        if ((Eigen::Vector2d(d.u_px, d.v_px) - v.center_px).norm() < 1.0) {
-          ++c.found;
-          break;
-        }
-      }
-    }
-    for (const DetectedSpot& d : kept) {
-      bool near = false;
-      for (const SpotView& v : shot->spots) {
-        near = near || (v.center_px.allFinite() &&
-                        (Eigen::Vector2d(d.u_px, d.v_px) - v.center_px).norm() < 1.0);
-      }
-      c.false_spots += near ? 0 : 1;
-    }
-  }
-  return c;
-}
-
-// The similarity from the identified spots to their true points (source,
-// beam): its scale, and the identified spots whose mapped point is more
-// than 5 mm from their beam's true point (wrong identifications).
-struct TruthFit {
-  double scale = 0.0;
-  int points = 0;
-  int wrong = 0;
-};
-
-TruthFit FitToTruth(const ImageMeasureReport& report, const SceneRenderer& truth) {
-  std::map<std::pair<std::string, int>, Eigen::Vector3d> true_point;
-  for (const SceneSpotTruth& s : truth.spots()) true_point[{s.source, s.beam}] = s.point_in_scene;
-  std::vector<Eigen::Vector3d> measured, truths;
-  for (const Spot& spot : report.spots) {
-    if (!spot.assigned()) continue;
-    measured.push_back(spot.observation.point_in_scene);
-    truths.push_back(true_point.at({spot.source, spot.observation.beam_id}));
-  }
-  TruthFit fit;
-  fit.points = static_cast<int>(measured.size());
-  if (fit.points < 4) return fit;
-  Eigen::Matrix3Xd src(3, fit.points), dst(3, fit.points);
-  for (int i = 0; i < fit.points; ++i) {
-    src.col(i) = measured[static_cast<size_t>(i)];
-    dst.col(i) = truths[static_cast<size_t>(i)];
-  }
-  const Eigen::Matrix4d t = Eigen::umeyama(src, dst, true);
-  fit.scale = t.topLeftCorner<3, 3>().col(0).norm();
-  for (int i = 0; i < fit.points; ++i) {
-    const Eigen::Vector3d mapped = t.topLeftCorner<3, 3>() * src.col(i) + t.topRightCorner<3, 1>();
-    fit.wrong += (mapped - dst.col(i)).norm() > 5.0 ? 1 : 0;
-  }
-  return fit;
-}
-
 TEST(DarkFrames, SubtractingThemClearsTheClutter) {
   const Scene scene = ClutteredScene();
   const std::filesystem::path dir = FreshTempDir("dark_frames");
@@ -138,8 +69,8 @@ TEST(DarkFrames, SubtractingThemClearsTheClutter) {
   Result<ImageMeasureReport> without =
       MeasureScaleFromImages(scene, dir.string(), *calibration, options);
 
-  const Counts c_with = CountSpots(*truth, *with);
-  const TruthFit f_with = FitToTruth(*with, *truth);
+  const test::SpotCounts c_with = test::CountSpots(*truth, *with);
+  const test::TruthFit f_with = test::FitToTruth(*with, *truth);
   const double s_with = with->measure.scale.scale_factor;
   const double u_with = with->measure.scale.u_scale_factor;
   std::printf("with dark frames: recall %d/%d, false spots %d; %d identified, %d wrong; "
@@ -147,8 +78,8 @@ TEST(DarkFrames, SubtractingThemClearsTheClutter) {
               c_with.found, c_with.visible, c_with.false_spots, f_with.points, f_with.wrong,
               s_with / f_with.scale - 1.0, u_with);
   if (without.ok()) {
-    const Counts c = CountSpots(*truth, *without);
-    const TruthFit f = FitToTruth(*without, *truth);
+    const test::SpotCounts c = test::CountSpots(*truth, *without);
+    const test::TruthFit f = test::FitToTruth(*without, *truth);
     std::printf("without: recall %d/%d, false spots %d; %d identified, %d wrong; "
                 "s/s_true - 1 = %.2e, u(s) = %.2e; %zu warnings\n",
                 c.found, c.visible, c.false_spots, f.points, f.wrong,

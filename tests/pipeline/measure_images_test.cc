@@ -25,6 +25,7 @@
 #include "opl/io/scene_json.h"
 #include "opl/lab/render_scene.h"
 #include "opl/sim/module_design.h"
+#include "support/lab_truth.h"
 #include "support/scene_images.h"
 
 namespace opl {
@@ -55,44 +56,6 @@ Scene NoiseFreeSmallScene() {
   scene.image.bit_depth = 16;
   scene.spots.speckle_contrast = 0.0;
   return scene;
-}
-
-// The true scale of the measured frame (mm per scene unit): the similarity
-// that maps the identified spots onto their true points.
-struct TruthFit {
-  double scale = 0.0;
-  double rms_mm = 0.0;  // residual of the fit
-  int points = 0;
-};
-
-TruthFit FitToTruth(const ImageMeasureReport& report, const SceneRenderer& truth) {
-  std::map<std::pair<std::string, int>, Eigen::Vector3d> true_point;
-  for (const SceneSpotTruth& s : truth.spots()) true_point[{s.source, s.beam}] = s.point_in_scene;
-  std::vector<Eigen::Vector3d> measured, truths;
-  for (const Spot& spot : report.spots) {
-    if (!spot.assigned()) continue;
-    const auto found = true_point.find({spot.source, spot.observation.beam_id});
-    if (found == true_point.end()) continue;
-    measured.push_back(spot.observation.point_in_scene);
-    truths.push_back(found->second);
-  }
-  TruthFit fit;
-  fit.points = static_cast<int>(measured.size());
-  if (fit.points < 4) return fit;
-  Eigen::Matrix3Xd src(3, fit.points), dst(3, fit.points);
-  for (int i = 0; i < fit.points; ++i) {
-    src.col(i) = measured[static_cast<size_t>(i)];
-    dst.col(i) = truths[static_cast<size_t>(i)];
-  }
-  const Eigen::Matrix4d t = Eigen::umeyama(src, dst, true);
-  fit.scale = t.topLeftCorner<3, 3>().col(0).norm();
-  double sum = 0.0;
-  for (int i = 0; i < fit.points; ++i) {
-    const Eigen::Vector3d mapped = t.topLeftCorner<3, 3>() * src.col(i) + t.topRightCorner<3, 1>();
-    sum += (mapped - dst.col(i)).squaredNorm();
-  }
-  fit.rms_mm = std::sqrt(sum / fit.points);
-  return fit;
 }
 
 TEST(MeasureScaleFromImages, NoiseFreeRenderGivesTheTrueScale) {
@@ -130,7 +93,7 @@ TEST(MeasureScaleFromImages, NoiseFreeRenderGivesTheTrueScale) {
       }
     }
   }
-  const TruthFit fit = FitToTruth(*report, truth);
+  const test::TruthFit fit = test::FitToTruth(*report, truth);
   std::cout.precision(10);
   std::cout << "truth fit: " << fit.points << " spots, scale " << fit.scale << ", rms "
             << fit.rms_mm << " mm; s = " << report->measure.scale.scale_factor << " +- "
@@ -217,7 +180,7 @@ TEST(MeasureScaleFromImages, BothGridsInOneImage) {
   }
   // Every assigned spot is the right one: its measured point lies on its
   // own true point after the truth fit (a wrong beam is >= 46 mm off).
-  const TruthFit fit = FitToTruth(*report, truth);
+  const test::TruthFit fit = test::FitToTruth(*report, truth);
   std::cout.precision(10);
   std::cout << "truth fit: " << fit.points << " spots, scale " << fit.scale << ", rms "
             << fit.rms_mm << " mm; s = " << report->measure.scale.scale_factor << " +- "

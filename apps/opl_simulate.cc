@@ -29,7 +29,6 @@
 #include <thread>
 #include <vector>
 
-#include <opencv2/imgcodecs.hpp>
 
 #include "cli_common.h"
 #include "progress_bar.h"

@@ -4,6 +4,7 @@
 // geometry whose tag corners scatter beyond their model.
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <set>
 #include <string>
@@ -279,23 +280,44 @@ Status FrontEndRun::AdjustTags() {
     if (!adjusted.ok()) {
       return Status::NoSolution("bundle adjustment of the tags: " + adjusted.status().message());
     }
-    // Drop tag observations that stay far off.
-    std::vector<BundleObservation> kept;
-    std::vector<TagObservationRef> kept_refs;
-    for (size_t k = 0; k < adjusted->data.observations.size(); ++k) {
+    // Drop tag observations that stay far off: beyond max_tag_residual_px,
+    // or beyond tag_outlier_factor x the median residual (at least
+    // min_tag_outlier_residual_px): a corner that a highlight or a lamp
+    // pulled off its edge while its edge fit still claims a few
+    // hundredths of a pixel.
+    const size_t n_obs = adjusted->data.observations.size();
+    std::vector<double> residual_px(n_obs, std::numeric_limits<double>::infinity());
+    for (size_t k = 0; k < n_obs; ++k) {
       const BundleObservation& ob = adjusted->data.observations[k];
       const Camera cam = adjusted->data.CameraAt(ob.camera);
       Eigen::Vector2d px;
-      const bool ok = cam.Project(adjusted->data.points[static_cast<size_t>(ob.point)].point_in_scene, &px) &&
-                      (px - ob.pixel_px).norm() <= options.max_tag_residual_px * std::sqrt(2.0);
+      if (cam.Project(adjusted->data.points[static_cast<size_t>(ob.point)].point_in_scene, &px)) {
+        residual_px[k] = (px - ob.pixel_px).norm();
+      }
+    }
+    double limit_px = options.max_tag_residual_px * std::sqrt(2.0);
+    if (n_obs > 0) {
+      std::vector<double> sorted = residual_px;
+      std::nth_element(sorted.begin(), sorted.begin() + static_cast<long>(n_obs / 2), sorted.end());
+      const double median = sorted[n_obs / 2];
+      if (std::isfinite(median)) {
+        limit_px = std::min(limit_px, std::max(options.min_tag_outlier_residual_px,
+                                               options.tag_outlier_factor * median));
+      }
+    }
+    std::vector<BundleObservation> kept;
+    std::vector<TagObservationRef> kept_refs;
+    for (size_t k = 0; k < n_obs; ++k) {
+      const BundleObservation& ob = adjusted->data.observations[k];
+      const bool ok = residual_px[k] <= limit_px;
       if (ok) {
         kept.push_back(ob);
         kept_refs.push_back(tag_refs[k]);
       } else {
         result.images[static_cast<size_t>(tag_refs[k].image)].notes.push_back(
             "tag " + std::to_string(tag_refs[k].tag) + " corner " +
-            std::to_string(tag_refs[k].corner) + " dropped (residual > " +
-            FormatNumber(options.max_tag_residual_px) + " px)");
+            std::to_string(tag_refs[k].corner) + " dropped (residual " +
+            FormatNumber(residual_px[k], 3) + " px > " + FormatNumber(limit_px, 3) + " px)");
       }
     }
     for (size_t c = 0; c < bundle.cameras.size(); ++c) {

@@ -16,6 +16,14 @@ Status FrontEndOptions::Validate() const {
     return Status::InvalidArgument("max_tag_residual_px must be finite and > 0, got " +
                                    FormatNumber(max_tag_residual_px));
   }
+  if (!(std::isfinite(tag_outlier_factor) && tag_outlier_factor > 0.0)) {
+    return Status::InvalidArgument("tag_outlier_factor must be finite and > 0, got " +
+                                   FormatNumber(tag_outlier_factor));
+  }
+  if (!(std::isfinite(min_tag_outlier_residual_px) && min_tag_outlier_residual_px > 0.0)) {
+    return Status::InvalidArgument("min_tag_outlier_residual_px must be finite and > 0, got " +
+                                   FormatNumber(min_tag_outlier_residual_px));
+  }
   if (!(std::isfinite(max_spot_variance_factor) && max_spot_variance_factor > 1.0)) {
     return Status::InvalidArgument("max_spot_variance_factor must be finite and > 1, got " +
                                    FormatNumber(max_spot_variance_factor));

@@ -87,8 +87,9 @@ bool FitEdge(const cv::Mat& image, const Eigen::Vector2d& p, const Eigen::Vector
         values.push_back(image.at<double>(i, j));
       }
     }
-    const int m = static_cast<int>(pts.size());
+    int m = static_cast<int>(pts.size());
     if (m < settings.min_pixels) return false;
+    const int m_band = m;
     if (pass == 0) {
       // Initial levels: means of the inner and outer halves of the band.
       double in_sum = 0.0, out_sum = 0.0;
@@ -160,10 +161,19 @@ bool FitEdge(const cv::Mat& image, const Eigen::Vector2d& p, const Eigen::Vector
         }
       }
     }
-    double lambda = 1e-3;
+    double cost = 0.0;
     Eigen::Matrix<double, 6, 6> jtj;
     Eigen::Matrix<double, 6, 1> jtr;
-    double cost = cost_and_jacobian(x, &jtj, &jtr);
+    // Outliers: pixels that do not belong to the step (a highlight, a lamp or
+    // a retro-reflective dot over the edge) would pull the fitted edge by up
+    // to a pixel while the corner's covariance stays small. After each
+    // convergence, pixels whose residual exceeds
+    // max(outlier_mad_factor x 1.4826 MAD, outlier_contrast_fraction x b) are
+    // dropped and the fit is run again (at most max_outlier_rounds times); an
+    // edge that loses more than max_outlier_fraction of its band fails.
+    for (int round = 0;; ++round) {
+    double lambda = 1e-3;
+    cost = cost_and_jacobian(x, &jtj, &jtr);
     for (int iter = 0; iter < 30; ++iter) {
       Eigen::Matrix<double, 6, 6> damped = jtj;
       for (int k = 0; k < 6; ++k) damped(k, k) += lambda * std::max(jtj(k, k), 1e-12);
@@ -193,6 +203,37 @@ bool FitEdge(const cv::Mat& image, const Eigen::Vector2d& p, const Eigen::Vector
         lambda *= 10.0;
         if (lambda > 1e8) break;
       }
+    }
+    if (round >= settings.max_outlier_rounds) break;
+    std::vector<double> residuals(static_cast<size_t>(m)), abs_residuals(residuals.size());
+    {
+      const double ct = std::cos(x[0]), st = std::sin(x[0]), sig = std::exp(x[5]);
+      for (int k = 0; k < m; ++k) {
+        double cdf, pdf;
+        NormalCdfPdf((ct * qx[k] + st * qy[k] - x[1] + x[2] * s2[k]) / sig, &cdf, &pdf);
+        residuals[k] = x[3] + x[4] * cdf - values[k];
+        abs_residuals[k] = std::abs(residuals[k]);
+      }
+    }
+    std::nth_element(abs_residuals.begin(), abs_residuals.begin() + m / 2, abs_residuals.end());
+    const double robust_sigma = 1.4826 * abs_residuals[static_cast<size_t>(m / 2)];
+    const double limit = std::max(settings.outlier_mad_factor * robust_sigma,
+                                  settings.outlier_contrast_fraction * std::abs(x[4]));
+    int kept = 0;
+    for (int k = 0; k < m; ++k) {
+      if (std::abs(residuals[k]) > limit) continue;
+      pts[kept] = pts[k];
+      values[kept] = values[k];
+      qx[kept] = qx[k];
+      qy[kept] = qy[k];
+      s2[kept] = s2[k];
+      ++kept;
+    }
+    if (kept == m) break;
+    if (kept < settings.min_pixels || m_band - kept > settings.max_outlier_fraction * m_band) return false;
+    m = kept;
+    pts.resize(static_cast<size_t>(m));
+    values.resize(static_cast<size_t>(m));
     }
     edge->theta = x[0];
     edge->c = x[1];

@@ -51,6 +51,12 @@ struct EdgeFitSettings {
   double corner_exclusion_px = 2.5;  // pixels this close to a corner (along the edge) are not used [px]
   double max_sigma_px = 4.0;         // a fitted edge spread above this fails the fit [px]
   int min_pixels = 12;               // fewer pixels in the band fail the fit
+  // Outlier pixels (FitEdge): residual above max(outlier_mad_factor x robust
+  // sigma, outlier_contrast_fraction x step height) after a convergence.
+  double outlier_mad_factor = 4.0;
+  double outlier_contrast_fraction = 0.05;
+  int max_outlier_rounds = 2;
+  double max_outlier_fraction = 0.25;  // more outliers in the band fail the fit
 };
 
 // Fits the edge from corner p to corner q of a quad whose centre is `centre`

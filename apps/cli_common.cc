@@ -13,6 +13,7 @@
 #include <glog/logging.h>
 
 #include "opl/core/message_text.h"
+#include "opl/core/version.h"
 #include "opl/model/beam_pattern.h"
 #include "opl/uncertainty/monte_carlo.h"
 
@@ -55,6 +56,8 @@ int FailWrite(const std::string& tool, const Status& status) {
 }
 
 std::optional<int> ParseCommandLine(CLI::App& app, int argc, char** argv) {
+  app.set_version_flag("--version", app.get_name() + " " + VersionString(),
+                       "Print the tool's version and the commit it was built from, and exit");
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

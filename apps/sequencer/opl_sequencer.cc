@@ -20,6 +20,7 @@
 #include <nlohmann/json.hpp>
 
 #include "opl/sequencer/client.h"
+#include "opl_version_git.h"  // generated: OPL_VERSION_NUMBER, OPL_GIT_DESCRIBE
 #include "opl/sequencer/config.h"
 #include "opl/sequencer/daemon.h"
 
@@ -27,6 +28,9 @@ namespace seq = opl::sequencer;
 
 int main(int argc, char** argv) {
   CLI::App app{"OPL laser-module GPIO sequencer: daemon and client"};
+  app.set_version_flag("--version", std::string("opl_sequencer ") + OPL_VERSION_NUMBER + " (commit " +
+                                         OPL_GIT_DESCRIBE + ")",
+                       "Print the version and the commit it was built from, and exit");
   app.require_subcommand(1);
 
   std::string config_path;
@@ -85,6 +89,8 @@ int main(int argc, char** argv) {
     return app.exit(e);
   } catch (const CLI::CallForAllHelp& e) {
     return app.exit(e);
+  } catch (const CLI::CallForVersion& e) {
+    return app.exit(e);  // prints the version on stdout, returns 0
   } catch (const CLI::ParseError& e) {
     app.exit(e);
     return seq::kExitUsage;

@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <cstdlib>
+#include <regex>
 #include <set>
 #include <sstream>
 
@@ -13,6 +14,7 @@
 
 #include "cli_test_util.h"
 #include "io/temp_dir.h"
+#include "opl/core/version.h"
 #include "opl/io/module_calibration_json.h"
 #include "opl/io/points_csv.h"
 #include "opl/io/spots_csv.h"
@@ -82,6 +84,23 @@ TEST(MeasureCliUsage, HelpTeachesTheTool) {
   EXPECT_THAT(r.out, HasSubstr("Exit codes:"));
   EXPECT_THAT(r.out, HasSubstr("  4  no solution"));
   EXPECT_THAT(r.out, HasSubstr("docs/formats.md"));
+}
+
+// --version on every tool: "<tool> <x.y.z> (commit <git describe>)" on
+// stdout, exit 0, the library's VersionString() (core/version.h), which
+// names the commit of this checkout.
+TEST(CliVersion, EveryToolPrintsItsVersionAndCommit) {
+  const std::regex line(R"(opl_[a-z]+ [0-9]+\.[0-9]+\.[0-9]+ \(commit ([0-9a-f]{7,}(-dirty)?|unknown)\)\n)");
+  const std::pair<const char*, const char*> tools[] = {
+      {"opl_measure", OPL_MEASURE_EXE}, {"opl_simulate", OPL_SIMULATE_EXE}, {"opl_calibrate", OPL_CALIBRATE_EXE}};
+  for (const auto& [name, exe] : tools) {
+    const RunResult r = cli_test::Run(exe, "--version");
+    EXPECT_EQ(r.exit_code, 0) << name;
+    EXPECT_EQ(r.err, "") << name;
+    EXPECT_EQ(r.out, std::string(name) + " " + VersionString() + "\n");
+    EXPECT_TRUE(std::regex_match(r.out, line)) << r.out;
+  }
+  EXPECT_EQ(VersionString(), VersionNumber() + " (commit " + GitDescribe() + ")");
 }
 
 TEST(MeasureCliUsage, UsageErrorsExitWith2) {

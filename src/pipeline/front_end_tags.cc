@@ -280,11 +280,11 @@ Status FrontEndRun::AdjustTags() {
     if (!adjusted.ok()) {
       return Status::NoSolution("bundle adjustment of the tags: " + adjusted.status().message());
     }
-    // Drop tag observations that stay far off: beyond max_tag_residual_px,
-    // or beyond tag_outlier_factor x the median residual (at least
+    // Drop tag observations that stay beyond max_tag_residual_px; down-weight
+    // those beyond tag_outlier_factor x the median residual (at least
     // min_tag_outlier_residual_px): a corner that a highlight or a lamp
-    // pulled off its edge while its edge fit still claims a few
-    // hundredths of a pixel.
+    // pulled off its edge while its edge fit still claims a few hundredths
+    // of a pixel gets the variance of its residual.
     const size_t n_obs = adjusted->data.observations.size();
     std::vector<double> residual_px(n_obs, std::numeric_limits<double>::infinity());
     for (size_t k = 0; k < n_obs; ++k) {
@@ -295,7 +295,8 @@ Status FrontEndRun::AdjustTags() {
         residual_px[k] = (px - ob.pixel_px).norm();
       }
     }
-    double limit_px = options.max_tag_residual_px * std::sqrt(2.0);
+    const double drop_px = options.max_tag_residual_px * std::sqrt(2.0);
+    double limit_px = drop_px;
     if (n_obs > 0) {
       std::vector<double> sorted = residual_px;
       std::nth_element(sorted.begin(), sorted.begin() + static_cast<long>(n_obs / 2), sorted.end());
@@ -309,15 +310,24 @@ Status FrontEndRun::AdjustTags() {
     std::vector<TagObservationRef> kept_refs;
     for (size_t k = 0; k < n_obs; ++k) {
       const BundleObservation& ob = adjusted->data.observations[k];
-      const bool ok = residual_px[k] <= limit_px;
-      if (ok) {
-        kept.push_back(ob);
-        kept_refs.push_back(tag_refs[k]);
-      } else {
-        result.images[static_cast<size_t>(tag_refs[k].image)].notes.push_back(
-            "tag " + std::to_string(tag_refs[k].tag) + " corner " +
-            std::to_string(tag_refs[k].corner) + " dropped (residual " +
-            FormatNumber(residual_px[k], 3) + " px > " + FormatNumber(limit_px, 3) + " px)");
+      const std::string corner = "tag " + std::to_string(tag_refs[k].tag) + " corner " +
+                                 std::to_string(tag_refs[k].corner);
+      std::vector<std::string>& notes = result.images[static_cast<size_t>(tag_refs[k].image)].notes;
+      if (residual_px[k] > drop_px) {
+        notes.push_back(corner + " dropped (residual " + FormatNumber(residual_px[k], 3) + " px > " +
+                        FormatNumber(drop_px, 3) + " px)");
+        continue;
+      }
+      kept.push_back(ob);
+      kept_refs.push_back(tag_refs[k]);
+      if (residual_px[k] > limit_px) {
+        // Kept (dropping it could leave a frame tag seen from one position),
+        // but weighted as what it is: a corner off by its residual.
+        const double v = 0.5 * residual_px[k] * residual_px[k];
+        Eigen::Matrix2d& c = kept.back().covariance_px2;
+        c = c + (v - std::min(v, c.trace() / 2.0)) * Eigen::Matrix2d::Identity();
+        notes.push_back(corner + " down-weighted (residual " + FormatNumber(residual_px[k], 3) +
+                        " px > " + FormatNumber(limit_px, 3) + " px)");
       }
     }
     for (size_t c = 0; c < bundle.cameras.size(); ++c) {

@@ -23,9 +23,10 @@
 //     vision/tag_poses.h; the scale is that of the nominal tag size).
 //  4. Bundle adjustment of the tag corners (cameras' intrinsics held, one
 //     pose per image), Huber loss: tag observations that stay beyond
-//     `max_tag_residual_px`, or beyond `tag_outlier_factor` x the median
-//     corner residual (at least `min_tag_outlier_residual_px`: a corner a
-//     highlight pulled off its edge), are dropped (a note on the image).
+//     `max_tag_residual_px` are dropped; those beyond `tag_outlier_factor`
+//     x the median corner residual (at least `min_tag_outlier_residual_px`:
+//     a corner a highlight pulled off its edge) are kept with their
+//     residual as their standard error (a note on the image either way).
 //  5. Spots matched across the images of each exposure group (the shots with
 //     the same lasers on and the same slice: taken at the same time, or at
 //     least of the same spots), by epipolar geometry and a third view
@@ -84,10 +85,12 @@ struct FrontEndOptions {
   // A tag corner observation whose residual after the first bundle
   // adjustment exceeds this is dropped [px], > 0.
   double max_tag_residual_px = 2.0;
-  // ... and so is one whose residual exceeds tag_outlier_factor x the median
-  // corner residual of that adjustment, when that is above
+  // One whose residual exceeds tag_outlier_factor x the median corner
+  // residual of that adjustment, when that is above
   // min_tag_outlier_residual_px [px] (a corner pulled off its edge by a
-  // highlight or a lamp over the tag). Both > 0.
+  // highlight or a lamp over the tag), is down-weighted: its covariance
+  // becomes at least (residual^2 / 2) I. Dropping it instead could leave a
+  // frame tag seen from one position. Both > 0.
   double tag_outlier_factor = 4.0;
   double min_tag_outlier_residual_px = 0.25;
   // A tag is adjusted only when each of its corners is seen from two

@@ -128,6 +128,11 @@ int Calibrate(const Args& args) {
     Result<std::string> text = ReadFileToString(args.into_path);
     if (!text.ok()) return cli::FailInput(kTool, text.status());
     into_text = *text;
+    if (Status s = CheckCamerasBlockDocument(into_text, args.into_path,
+                                             std::filesystem::path(args.into_path).parent_path().string());
+        !s.ok()) {
+      return cli::FailInput(kTool, s);
+    }
   }
 
   CameraImagesOptions options;

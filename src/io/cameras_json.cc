@@ -69,10 +69,12 @@ std::string FormatCamerasJson(const std::vector<SceneCamera>& cameras) {
   return root.dump(2) + "\n";
 }
 
-Result<CamerasBlockUpdate> UpdateCamerasBlock(const std::string& text, const std::string& name,
-                                              const std::string& base_dir, const SceneCamera& camera) {
+namespace {
+
+// The document's format, "opl.scene" or "opl.cameras", after checking that
+// the document reads with the reader of that format.
+Result<std::string> CheckedFormat(const std::string& text, const std::string& name, const std::string& base_dir) {
   const JsonReader r(name);
-  // The document as it is must be valid, by the reader of its format.
   Result<json> parsed = r.ParseText(text);
   if (!parsed.ok()) return parsed.status();
   std::string format;
@@ -81,14 +83,32 @@ Result<CamerasBlockUpdate> UpdateCamerasBlock(const std::string& text, const std
       format = f->get<std::string>();
     }
   }
+  if (format == "opl.scene") {
+    OPL_RETURN_IF_ERROR(ParseSceneJson(text, name, base_dir).status());
+  } else if (format == "opl.cameras") {
+    OPL_RETURN_IF_ERROR(ParseCamerasJson(text, name).status());
+  } else {
+    return r.Error("format", "expected \"opl.scene\" or \"opl.cameras\" (a scene or a cameras JSON)");
+  }
+  return format;
+}
+
+}  // namespace
+
+Status CheckCamerasBlockDocument(const std::string& text, const std::string& name, const std::string& base_dir) {
+  return CheckedFormat(text, name, base_dir).status();
+}
+
+Result<CamerasBlockUpdate> UpdateCamerasBlock(const std::string& text, const std::string& name,
+                                              const std::string& base_dir, const SceneCamera& camera) {
+  // The document as it is must be valid, by the reader of its format.
+  Result<std::string> checked = CheckedFormat(text, name, base_dir);
+  if (!checked.ok()) return checked.status();
+  const std::string format = *checked;
   auto validate = [&](const std::string& document) -> Status {
     if (format == "opl.scene") return ParseSceneJson(document, name, base_dir).status();
     return ParseCamerasJson(document, name).status();
   };
-  if (format != "opl.scene" && format != "opl.cameras") {
-    return r.Error("format", "expected \"opl.scene\" or \"opl.cameras\" (a scene or a cameras JSON)");
-  }
-  OPL_RETURN_IF_ERROR(validate(text));
 
   nlohmann::ordered_json root = nlohmann::ordered_json::parse(text);  // valid: parsed above
   nlohmann::ordered_json& cameras = root["cameras"];

@@ -162,6 +162,11 @@ TEST(CameraCli, ErrorsAreOneLineWithTheirExitCodeAndNoOutput) {
     ExpectOneLineError(r, scene + ": ");
     EXPECT_EQ(ReadAll(scene), R"({"format": "opl.scene", "version": 1, "cameras": []})");
   }
+  // --into is checked before the images are read: 3, not "no board found".
+  const std::string not_a_scene = dir.Write("board_as_scene.json", R"({"format": "opl.board", "version": 1})");
+  r = Camera("calibrate --images " + Join(blanks) + " --chessboard 9x6 --square-mm 25 --into '" + not_a_scene + "'");
+  EXPECT_EQ(r.exit_code, 3);
+  ExpectOneLineError(r, not_a_scene + ": format: expected \"opl.scene\" or \"opl.cameras\"");
   // Usage errors: 2.
   r = Camera("calibrate --images " + Join(blanks) + " --chessboard 9x6 --square-mm 25");
   EXPECT_EQ(r.exit_code, 2);

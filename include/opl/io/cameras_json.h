@@ -33,6 +33,12 @@ Result<std::vector<SceneCamera>> ParseCamerasJson(const std::string& text,
 // The cameras as a cameras JSON document (poses are not written).
 std::string FormatCamerasJson(const std::vector<SceneCamera>& cameras);
 
+// OK when `text` is a valid scene JSON or cameras JSON (what
+// UpdateCamerasBlock accepts), else the reader's ParseError; lets a tool
+// refuse a bad --into before its long work.
+Status CheckCamerasBlockDocument(const std::string& text, const std::string& name_for_messages,
+                                 const std::string& base_dir);
+
 // What UpdateCamerasBlock did.
 struct CamerasBlockUpdate {
   std::string text;       // the whole updated document

@@ -9,11 +9,11 @@
 #include <nlohmann/json.hpp>
 
 #include "io/json_reader.h"
+#include "io/scene_camera_json.h"
 #include "io/module_design_json_internal.h"
 #include "opl/core/format.h"
 #include "opl/io/atomic_file.h"
 #include "opl/io/module_design_json.h"
-#include "opl/vision/intrinsics_limits.h"
 #include "opl/vision/shot_image.h"
 
 namespace opl {
@@ -179,91 +179,7 @@ class SceneReader : public json_internal::JsonReader {
   }
 
   Status ParseCamera(const json& c, const std::string& path, SceneCamera* camera) const {
-    OPL_RETURN_IF_ERROR(CheckObject(c, path));
-    OPL_RETURN_IF_ERROR(CheckKeys(
-        c, path, {"name", "width_px", "height_px", "intrinsics", "pose", "cam_from_scene"}));
-    OPL_RETURN_IF_ERROR(RequiredString(c, path, "name", &camera->name));
-    CameraIntrinsics& in = camera->intrinsics;
-    OPL_RETURN_IF_ERROR(RequiredInteger(c, path, "width_px", &in.width_px));
-    OPL_RETURN_IF_ERROR(RequiredInteger(c, path, "height_px", &in.height_px));
-    // The image size limit of vision/shot_image.h: a camera of 100000 x 100000
-    // pixels made opl_simulate images allocate 10^10 pixels a frame.
-    const std::string side = std::to_string(kMaxImageSidePx);
-    if (in.width_px < 1 || in.width_px > kMaxImageSidePx) {
-      return Error(Join(path, "width_px"),
-                   "must be in [1, " + side + "], got " + std::to_string(in.width_px));
-    }
-    if (in.height_px < 1 || in.height_px > kMaxImageSidePx) {
-      return Error(Join(path, "height_px"),
-                   "must be in [1, " + side + "], got " + std::to_string(in.height_px));
-    }
-    if (static_cast<long long>(in.width_px) * in.height_px > kMaxImagePixels) {
-      return Error(path, std::to_string(in.width_px) + " x " + std::to_string(in.height_px) +
-                             " pixels is beyond the limit of " +
-                             std::to_string(kMaxImagePixels / 1000000) + " megapixels");
-    }
-    const json* v = nullptr;
-    const std::string ipath = Join(path, "intrinsics");
-    OPL_RETURN_IF_ERROR(Require(c, path, "intrinsics", &v));
-    OPL_RETURN_IF_ERROR(CheckObject(*v, ipath));
-    OPL_RETURN_IF_ERROR(CheckKeys(*v, ipath, {"fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3"}));
-    OPL_RETURN_IF_ERROR(RequiredNumber(*v, ipath, "fx", &in.fx_px));
-    OPL_RETURN_IF_ERROR(RequiredNumber(*v, ipath, "fy", &in.fy_px));
-    OPL_RETURN_IF_ERROR(RequiredNumber(*v, ipath, "cx", &in.cx_px));
-    OPL_RETURN_IF_ERROR(RequiredNumber(*v, ipath, "cy", &in.cy_px));
-    OPL_RETURN_IF_ERROR(OptionalNumber(*v, ipath, "k1", &in.k1));
-    OPL_RETURN_IF_ERROR(OptionalNumber(*v, ipath, "k2", &in.k2));
-    OPL_RETURN_IF_ERROR(OptionalNumber(*v, ipath, "p1", &in.p1));
-    OPL_RETURN_IF_ERROR(OptionalNumber(*v, ipath, "p2", &in.p2));
-    OPL_RETURN_IF_ERROR(OptionalNumber(*v, ipath, "k3", &in.k3));
-    if (!(in.fx_px > 0.0)) {
-      return Error(Join(ipath, "fx"), "must be > 0, got " + FormatNumber(in.fx_px));
-    }
-    if (!(in.fy_px > 0.0)) {
-      return Error(Join(ipath, "fy"), "must be > 0, got " + FormatNumber(in.fy_px));
-    }
-    if (const IntrinsicsFault fault = FindImplausibleIntrinsics(in); !fault.field.empty()) {
-      return Error(Join(ipath, fault.field), fault.what);
-    }
-
-    const json* pose = Find(c, "pose");
-    const json* direct = Find(c, "cam_from_scene");
-    if (pose != nullptr && direct != nullptr) {
-      return Error(Join(path, "cam_from_scene"),
-                   "give either \"pose\" or \"cam_from_scene\", not both");
-    }
-    if (pose != nullptr) {
-      const std::string ppath = Join(path, "pose");
-      OPL_RETURN_IF_ERROR(CheckObject(*pose, ppath));
-      OPL_RETURN_IF_ERROR(CheckKeys(*pose, ppath, {"center_mm", "look_at_mm", "roll_deg"}));
-      Eigen::Vector3d center, look_at;
-      double roll_deg = 0.0;
-      OPL_RETURN_IF_ERROR(RequiredVec3(*pose, ppath, "center_mm", &center));
-      OPL_RETURN_IF_ERROR(RequiredVec3(*pose, ppath, "look_at_mm", &look_at));
-      OPL_RETURN_IF_ERROR(OptionalNumber(*pose, ppath, "roll_deg", &roll_deg));
-      Result<Rigid3d> cam_from_scene = CamFromSceneLookingAt(center, look_at, roll_deg * kPi / 180.0);
-      if (!cam_from_scene.ok()) return Error(ppath, cam_from_scene.status().message());
-      camera->cam_from_scene = *cam_from_scene;
-    } else if (direct != nullptr) {
-      const std::string dpath = Join(path, "cam_from_scene");
-      OPL_RETURN_IF_ERROR(CheckObject(*direct, dpath));
-      OPL_RETURN_IF_ERROR(CheckKeys(*direct, dpath, {"quaternion_wxyz", "translation_mm"}));
-      OPL_RETURN_IF_ERROR(Require(*direct, dpath, "quaternion_wxyz", &v));
-      const std::string qpath = Join(dpath, "quaternion_wxyz");
-      if (!v->is_array() || v->size() != 4) {
-        return Error(qpath, "expected an array of 4 numbers, got " + Describe(*v));
-      }
-      double q[4];
-      for (size_t k = 0; k < 4; ++k) OPL_RETURN_IF_ERROR(Number((*v)[k], Index(qpath, k), &q[k]));
-      const double norm = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
-      if (std::abs(norm - 1.0) > 1e-6) {
-        return Error(qpath, "must be a unit quaternion (norm " + FormatNumber(norm) + ")");
-      }
-      Eigen::Vector3d t;
-      OPL_RETURN_IF_ERROR(RequiredVec3(*direct, dpath, "translation_mm", &t));
-      camera->cam_from_scene = Rigid3d(Eigen::Quaterniond(q[0], q[1], q[2], q[3]), t);
-    }
-    return Status::Ok();
+    return json_internal::ParseSceneCamera(*this, c, path, camera);
   }
 
   Status ParseTags(const json& t, const std::string& path, SceneTags* tags) const {

@@ -234,7 +234,9 @@ Result<CameraCalibration> CalibrateCamera(const std::vector<BoardView>& views, i
     result.intrinsics_std[k] = k < std_intrinsics.rows ? std_scale * std_intrinsics.at<double>(k) : 0.0;
     if (!std::isfinite(result.intrinsics_std[k])) result.intrinsics_std[k] = 0.0;
   }
-  if (options.fix_aspect_ratio) result.intrinsics_std[1] = result.intrinsics_std[0] * K.fy_px / K.fx_px;
+  // With CALIB_FIX_ASPECT_RATIO OpenCV holds fx (fx = fy * aspect, updated
+  // from fy) and reports its std dev as 0: fx's follows from fy's.
+  if (options.fix_aspect_ratio) result.intrinsics_std[0] = result.intrinsics_std[1] * K.fx_px / K.fy_px;
   result.rms_px = rms;
   result.num_views = static_cast<int>(views.size());
   result.num_corners = num_corners;

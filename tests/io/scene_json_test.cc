@@ -185,7 +185,7 @@ TEST(SceneJson, MessagesNameTheFieldExactly) {
             "s.json: cameras[0].intrinsics.fx: missing field");
   // Unknown field.
   EXPECT_EQ(Message(Doc("[" + kCamera.substr(0, kCamera.size() - 1) + R"(, "focal": 3})" + "]")),
-            "s.json: cameras[0].focal: unknown field (allowed here: cam_from_scene, height_px, "
+            "s.json: cameras[0].focal: unknown field (allowed here: calibration, cam_from_scene, height_px, "
             "intrinsics, name, pose, width_px)");
   EXPECT_EQ(Message(Doc() .substr(0, Doc().size() - 1) + R"(, "images": 1})"),
             "s.json: images: unknown field (allowed here: artifact, cameras, description, format, "

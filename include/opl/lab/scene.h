@@ -35,11 +35,26 @@
 
 namespace opl {
 
+// How a camera's intrinsics were calibrated: the optional "calibration" record
+// of a scene camera, written by `opl_camera calibrate` (docs/formats.md,
+// "Cameras JSON"). Informative: the front end uses the intrinsics only.
+struct SceneCameraCalibration {
+  // 1-sigma standard deviation of fx, fy, cx, cy [px], k1, k2, p1, p2, k3
+  // (kNumCameraParameters order); 0 for a parameter held fixed; >= 0, finite.
+  std::array<double, kNumCameraParameters> intrinsics_std{};
+  double rms_px = 0.0;   // RMS reprojection error of the calibration [px], >= 0
+  int num_views = 0;     // images used, >= 0
+  int num_corners = 0;   // board corners used, >= 0
+  std::string board;     // the board, as described by CalibrationBoard::Describe (may be empty)
+};
+
 struct SceneCamera {
   std::string name;               // unique, non-empty
   CameraIntrinsics intrinsics;    // calibrated (Validate()d), with the image size
   // True pose (the virtual lab renders with it). Absent in a measured scene.
   std::optional<Rigid3d> cam_from_scene;
+  // How the intrinsics were calibrated, when the file says so.
+  std::optional<SceneCameraCalibration> calibration;
 };
 
 struct SceneTag {

@@ -267,6 +267,7 @@ int Run(int argc, char** argv) {
   app.add_option("--format", args.apply_format,
                  "Format of the --apply file instead of its extension's: ply, xyz, csv")
       ->check(CLI::IsMember({"auto", "ply", "xyz", "csv"}))
+      ->type_name("FORMAT")
       ->capture_default_str()
       ->needs(apply);
   apply->needs(out);

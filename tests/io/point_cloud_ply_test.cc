@@ -6,6 +6,7 @@
 #include <charconv>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -310,6 +311,47 @@ TEST_F(PlyErrors, AsciiBody) {
             "10: the file ends at vertex 1 of 2 (truncated, or wrong counts in the header)");
   EXPECT_EQ(Refused(header + "1 2 3 0\n1 2 3 0\n7 7 7 0\n"),
             "11: text after the last element (wrong counts in the header?)");
+}
+
+// Every truncation and every single corrupted byte of a small binary and
+// ASCII PLY: an error or a complete output, never a crash (the sanitizer
+// build runs this too), never a partial file.
+TEST(PlyScale, EveryTruncationAndCorruptionIsRefusedOrScaled) {
+  // Hundreds of runs, each fsyncing its output: on tmpfs when there is one.
+  TempDir dir(std::filesystem::is_directory("/dev/shm")
+                  ? std::string("/dev/shm")
+                  : std::filesystem::temp_directory_path().string());
+  ASSERT_FALSE(dir.path().empty());
+  for (const bool ascii : {false, true}) {
+    std::string file;
+    if (ascii) {
+      file = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
+             "property float z\nproperty list uchar int l\nelement face 1\n"
+             "property list uchar int v\nend_header\n1 2 3 2 4 5\n6 7 8 0\n3 0 1 1\n";
+    } else {
+      file = Header("binary_little_endian") + Faces(false) +
+             Vertices(false, 1.5f, -2.25, 0.3f, 3.0f, 1e-3, -4.0f);
+    }
+    // (An ASCII file without its last line break is complete.)
+    for (size_t cut = 0; cut < file.size() - (ascii ? 1 : 0); ++cut) {
+      const std::string in = dir.Write("in.ply", file.substr(0, cut));
+      EXPECT_FALSE(Scale(in, dir.File("out.ply"), 2.0).ok()) << "cut at " << cut;
+      EXPECT_EQ(dir.Entries(), std::vector<std::string>{"in.ply"});
+    }
+    for (size_t at = 0; at < file.size(); ++at) {
+      for (const char c : std::string("\n9 \xff\x80", 5)) {
+        std::string bad = file;
+        bad[at] = c;
+        const std::string in = dir.Write("in.ply", bad);
+        Status st = Scale(in, dir.File("out.ply"), 2.0);
+        if (st.ok()) {
+          std::error_code ec;
+          std::filesystem::remove(dir.File("out.ply"), ec);
+        }
+        EXPECT_EQ(dir.Entries(), std::vector<std::string>{"in.ply"});
+      }
+    }
+  }
 }
 
 }  // namespace

@@ -359,13 +359,15 @@ class PlyScaler {
       }
       searched = line_begin;
       if (in_.size() >= kMaxHeaderBytes || in_.full() || in_.at_eof()) {
-        // Parse what there is for a precise message, else say why.
+        // Parse what there is: a malformed line is named; else it is the
+        // missing end_header (at the end of the file, or beyond the limit).
         Result<PlyHeader> parsed = ParsePlyHeader(window.substr(0, searched), in_.path());
-        if (!parsed.ok()) return parsed.status();
-        return Status::ParseError(in_.path() + ": the header has no 'end_header' line" +
-                                  (in_.at_eof() ? std::string(" (the file ends first)")
-                                                : " in its first " +
-                                                      std::to_string(kMaxHeaderBytes) + " bytes"));
+        const std::string no_end = in_.path() + ": the header has no 'end_header' line";
+        if (!parsed.ok() && (in_.at_eof() || parsed.status().message() != no_end)) {
+          return parsed.status();
+        }
+        return Status::ParseError(no_end + " in its first " + std::to_string(in_.size()) +
+                                  " bytes (a longer header is refused)");
       }
       Result<size_t> added = in_.Fill();
       if (!added.ok()) return added.status();

@@ -258,6 +258,15 @@ TEST_F(PlyErrors, Header) {
             "7: a second property 'y' in element 'vertex'");
   EXPECT_EQ(Refused("ply\nformat ascii 1.0\n" + v + "propery float w\nend_header\n"),
             "7: unknown header line 'propery float w'");
+  // A header that does not end within the buffer.
+  std::string comments;
+  while (comments.size() < 5000) comments += "comment a long story\n";
+  const std::string in = dir_.Write("in.ply", "ply\nformat ascii 1.0\n" + comments + v +
+                                                  "end_header\n1 2 3\n");
+  EXPECT_EQ(Scale(in, dir_.File("out.ply"), 2.0, nullptr, 4096).message(),
+            in + ": the header has no 'end_header' line in its first 4096 bytes (a longer header "
+                 "is refused)");
+  EXPECT_EQ(dir_.Entries(), std::vector<std::string>{"in.ply"});
 }
 
 TEST_F(PlyErrors, BinaryBody) {

@@ -49,27 +49,36 @@ opl::ScalePointFileOptions ApplyOptions(const Args& args) {
   return options;
 }
 
-// Before any solve: the --apply file opens and its header is valid; an --out
-// whose extension names another format than the input's is a usage error (the
-// output has the input's format). std::nullopt when fine, else the exit code.
-std::optional<int> CheckApply(const Args& args) {
+// Before anything is read: an --out whose extension names another format
+// than the --apply file's is a usage error (the output has the input's
+// format). std::nullopt when fine (or when the input's format is unknown:
+// CheckApply refuses that), else the exit code.
+std::optional<int> CheckOutFormat(const Args& args) {
   using namespace opl;
   if (args.apply_path.empty()) return std::nullopt;
   const ScalePointFileOptions options = ApplyOptions(args);
-  if (Status st = CheckPointFile(args.apply_path, options); !st.ok()) {
-    return cli::FailInput(kTool, st);
-  }
-  const PointFileFormat in_format =
-      options.format != PointFileFormat::kAuto ? options.format
-                                               : *PointFileFormatFromPath(args.apply_path);
+  Result<PointFileFormat> in_format = options.format != PointFileFormat::kAuto
+                                          ? Result<PointFileFormat>(options.format)
+                                          : PointFileFormatFromPath(args.apply_path);
   Result<PointFileFormat> out_format = PointFileFormatFromPath(args.out_path);
-  if (out_format.ok() && *out_format != in_format) {
+  if (in_format.ok() && out_format.ok() && *out_format != *in_format) {
     return cli::Fail(kTool,
                      "--out '" + args.out_path + "' names a " + PointFileFormatName(*out_format) +
                          " file but --apply '" + args.apply_path + "' is " +
-                         PointFileFormatName(in_format) +
+                         PointFileFormatName(*in_format) +
                          ": the output has the input's format (see --help)",
                      cli::kExitUsage);
+  }
+  return std::nullopt;
+}
+
+// Before any solve: the --apply file opens, its format is known and its header
+// is valid. std::nullopt when fine, else the exit code (3).
+std::optional<int> CheckApply(const Args& args) {
+  using namespace opl;
+  if (args.apply_path.empty()) return std::nullopt;
+  if (Status st = CheckPointFile(args.apply_path, ApplyOptions(args)); !st.ok()) {
+    return cli::FailInput(kTool, st);
   }
   return std::nullopt;
 }
@@ -294,6 +303,7 @@ int Run(int argc, char** argv) {
            {"--spots-out", args.spots_out_path}})) {
     return *code;
   }
+  if (std::optional<int> code = CheckOutFormat(args)) return *code;
   if (args.image_run.verbose) cli::ShowSolverLogging();
   if (args.spots.path.empty() == args.images_dir.empty()) {
     return cli::Fail(kTool, "give either --spots or --images (with --scene) (see --help)",

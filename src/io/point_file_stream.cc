@@ -30,19 +30,20 @@ Status InputFile::Open(const std::string& path, size_t buffer_bytes) {
   fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd_ < 0) return Status::IoError(path + ": cannot open: " + std::strerror(errno));
   file_size_ = static_cast<int64_t>(st.st_size);
-  buffer_.assign(buffer_bytes, '\0');
+  buffer_.reset(new char[buffer_bytes]);
+  capacity_ = buffer_bytes;
   return Status::Ok();
 }
 
 Result<size_t> InputFile::Fill() {
   if (begin_ > 0) {
-    std::memmove(buffer_.data(), buffer_.data() + begin_, end_ - begin_);
+    std::memmove(buffer_.get(), buffer_.get() + begin_, end_ - begin_);
     end_ -= begin_;
     begin_ = 0;
   }
   size_t added = 0;
-  while (!eof_ && end_ < buffer_.size()) {
-    const ssize_t n = ::read(fd_, buffer_.data() + end_, buffer_.size() - end_);
+  while (!eof_ && end_ < capacity_) {
+    const ssize_t n = ::read(fd_, buffer_.get() + end_, capacity_ - end_);
     if (n < 0) {
       if (errno == EINTR) continue;
       return Status::IoError(path_ + ": read error: " + std::strerror(errno));

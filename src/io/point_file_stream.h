@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <cstring>
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -25,8 +26,8 @@ class InputFile {
   Status Open(const std::string& path, size_t buffer_bytes);
   ~InputFile();
 
-  const char* data() const { return buffer_.data() + begin_; }
-  char* mutable_data() { return buffer_.data() + begin_; }
+  const char* data() const { return buffer_.get() + begin_; }
+  char* mutable_data() { return buffer_.get() + begin_; }
   size_t size() const { return end_ - begin_; }
   void Consume(size_t n) { begin_ += n; }
   // Reads more (after moving the window to the front). Returns the number of
@@ -35,8 +36,8 @@ class InputFile {
   // Fills until at least `n` bytes are in the window or the file ends.
   Status Ensure(size_t n);
   bool at_eof() const { return eof_; }
-  bool full() const { return size() == buffer_.size(); }
-  size_t capacity() const { return buffer_.size(); }
+  bool full() const { return size() == capacity_; }
+  size_t capacity() const { return capacity_; }
   // File offset of data()[0].
   int64_t offset() const { return file_offset_ - static_cast<int64_t>(end_ - begin_); }
   int64_t file_size() const { return file_size_; }
@@ -48,7 +49,8 @@ class InputFile {
  private:
   std::string path_;
   int fd_ = -1;
-  std::vector<char> buffer_;
+  std::unique_ptr<char[]> buffer_;  // not zero-filled: pages are touched only when read into
+  size_t capacity_ = 0;
   size_t begin_ = 0, end_ = 0;
   int64_t file_offset_ = 0;  // bytes read from the file so far
   int64_t file_size_ = 0;

@@ -344,7 +344,7 @@ TEST(PlyScale, EveryTruncationAndCorruptionIsRefusedOrScaled) {
     // (An ASCII file without its last line break is complete.)
     for (size_t cut = 0; cut < file.size() - (ascii ? 1 : 0); ++cut) {
       const std::string in = dir.Write("in.ply", file.substr(0, cut));
-      EXPECT_FALSE(Scale(in, dir.File("out.ply"), 2.0).ok()) << "cut at " << cut;
+      EXPECT_FALSE(Scale(in, dir.File("out.ply"), 2.0, nullptr, 4096).ok()) << "cut at " << cut;
       EXPECT_EQ(dir.Entries(), std::vector<std::string>{"in.ply"});
     }
     for (size_t at = 0; at < file.size(); ++at) {
@@ -352,7 +352,7 @@ TEST(PlyScale, EveryTruncationAndCorruptionIsRefusedOrScaled) {
         std::string bad = file;
         bad[at] = c;
         const std::string in = dir.Write("in.ply", bad);
-        Status st = Scale(in, dir.File("out.ply"), 2.0);
+        Status st = Scale(in, dir.File("out.ply"), 2.0, nullptr, 4096);
         if (st.ok()) {
           std::error_code ec;
           std::filesystem::remove(dir.File("out.ply"), ec);

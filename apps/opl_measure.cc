@@ -2,6 +2,7 @@
 // sources (docs/cli.md). The work is done by opl::MeasureScale
 // (include/opl/pipeline/measure.h); this file parses options, reads files,
 // prints and maps errors to exit codes.
+#include <cmath>
 #include <filesystem>
 #include <iostream>
 #include <string>
@@ -14,7 +15,7 @@
 #include "opl/io/atomic_file.h"
 #include "opl/io/scene_json.h"
 #include "opl/io/module_calibration_json.h"
-#include "opl/io/points_csv.h"
+#include "opl/io/scale_point_file.h"
 #include "opl/io/spots_csv.h"
 #include "opl/pipeline/measure.h"
 #include "opl/pipeline/measure_images.h"
@@ -31,6 +32,7 @@ struct Args {
   bool json = false;
   std::string apply_path;
   std::string out_path;
+  std::string apply_format = "auto";
   std::string images_dir;
   std::string overlays_dir;
   std::string scene_path;
@@ -39,6 +41,67 @@ struct Args {
   bool one_pose_per_camera = false;
   opl::cli::ImageRunArgs image_run;  // --spot-channel, --force, --verbose
 };
+
+// --apply: the options of the streamed scaling (format, progress bar).
+opl::ScalePointFileOptions ApplyOptions(const Args& args) {
+  opl::ScalePointFileOptions options;
+  options.format = *opl::ParsePointFileFormat(args.apply_format);  // checked by CLI11
+  return options;
+}
+
+// Before anything is read: an --out whose extension names another format
+// than the --apply file's is a usage error (the output has the input's
+// format). std::nullopt when fine (or when the input's format is unknown:
+// CheckApply refuses that), else the exit code.
+std::optional<int> CheckOutFormat(const Args& args) {
+  using namespace opl;
+  if (args.apply_path.empty()) return std::nullopt;
+  const ScalePointFileOptions options = ApplyOptions(args);
+  Result<PointFileFormat> in_format = options.format != PointFileFormat::kAuto
+                                          ? Result<PointFileFormat>(options.format)
+                                          : PointFileFormatFromPath(args.apply_path);
+  Result<PointFileFormat> out_format = PointFileFormatFromPath(args.out_path);
+  if (in_format.ok() && out_format.ok() && *out_format != *in_format) {
+    return cli::Fail(kTool,
+                     "--out '" + args.out_path + "' names a " + PointFileFormatName(*out_format) +
+                         " file but --apply '" + args.apply_path + "' is " +
+                         PointFileFormatName(*in_format) +
+                         ": the output has the input's format (see --help)",
+                     cli::kExitUsage);
+  }
+  return std::nullopt;
+}
+
+// Before any solve: the --apply file opens, its format is known and its header
+// is valid. std::nullopt when fine, else the exit code (3).
+std::optional<int> CheckApply(const Args& args) {
+  using namespace opl;
+  if (args.apply_path.empty()) return std::nullopt;
+  if (Status st = CheckPointFile(args.apply_path, ApplyOptions(args)); !st.ok()) {
+    return cli::FailInput(kTool, st);
+  }
+  return std::nullopt;
+}
+
+// --apply FILE --out FILE with the measured s: streamed, atomically. The exit
+// code on failure (3 bad input, 4 unusable s, 5 cannot write), else nullopt.
+std::optional<int> ApplyScale(const Args& args, double s) {
+  using namespace opl;
+  if (!(std::isfinite(s) && s > 0.0)) {
+    return cli::Fail(kTool, "scale factor must be finite and > 0, got " + std::to_string(s),
+                     cli::kExitNoSolution);
+  }
+  ScalePointFileOptions options = ApplyOptions(args);
+  cli::ProgressBar bar("apply (MiB)", cli::StderrIsTerminal());
+  options.progress = [&bar](int64_t done, int64_t total) {
+    bar.Update(static_cast<int>(done >> 20), static_cast<int>(total >> 20));
+  };
+  ScalePointFileSummary summary;
+  Status st = ScalePointFile(args.apply_path, args.out_path, s, options, &summary);
+  bar.Finish();
+  if (!st.ok()) return summary.output_failed ? cli::FailWrite(kTool, st) : cli::FailInput(kTool, st);
+  return std::nullopt;
+}
 
 // opl_measure --images: the image front end, then the measurement.
 int RunImages(const Args& args) {
@@ -58,12 +121,7 @@ int RunImages(const Args& args) {
   if (Status st = CheckSceneHasLasers(*scene); !st.ok()) {
     return cli::Fail(kTool, args.scene_path + ": " + st.message(), cli::kExitBadInput);
   }
-  std::optional<PointsCsv> points;
-  if (!args.apply_path.empty()) {
-    Result<PointsCsv> read = PointsCsv::Read(args.apply_path);
-    if (!read.ok()) return cli::FailInput(kTool, read.status());
-    points = std::move(read).value();
-  }
+  if (std::optional<int> code = CheckApply(args)) return *code;
   ImageMeasureOptions options;
   options.front_end.num_threads = args.threads;
   options.front_end.one_pose_per_camera = args.one_pose_per_camera;
@@ -82,11 +140,6 @@ int RunImages(const Args& args) {
     Result<std::string> csv = FormatSpotsCsv(labelled, {});
     if (!csv.ok()) return cli::FailInput(kTool, csv.status());
     spots_csv = std::move(*csv);
-  }
-  if (points) {
-    if (Status st = points->Scale(report->measure.scale.scale_factor); !st.ok()) {
-      return cli::Fail(kTool, st.message(), cli::kExitNoSolution);
-    }
   }
   std::vector<std::pair<std::string, std::string>> overlays;
   if (!args.overlays_dir.empty()) {
@@ -117,11 +170,12 @@ int RunImages(const Args& args) {
       }
     }
   }
-  if (points) {
-    if (Status st = write(args.out_path, points->Format()); !st.ok()) {
+  if (!args.apply_path.empty()) {
+    if (std::optional<int> code = ApplyScale(args, report->measure.scale.scale_factor)) {
       undo();
-      return cli::FailWrite(kTool, st);
+      return *code;
     }
+    written.push_back(args.out_path);
   }
   if (!args.spots_out_path.empty()) {
     if (Status st = write(args.spots_out_path, spots_csv); !st.ok()) {
@@ -142,7 +196,8 @@ int Run(int argc, char** argv) {
       "the located projection origins are compared with the calibrated ones, and the\n"
       "scale factor s (mm per scene unit, with its standard uncertainty) is printed.\n"
       "Multiply every scene coordinate by s to get millimetres; --apply does that to a\n"
-      "points CSV.\n"
+      "point file (PLY, XYZ or points CSV, streamed: 10 million points need no more\n"
+      "memory than ten), keeping everything else in it (docs/formats.md, 'Point files').\n"
       "\n"
       "Spots need not be sorted: points without a source or beam (empty fields, or no\n"
       "such columns, e.g. a point table read with --columns id,x,y,z) are identified\n"
@@ -209,17 +264,30 @@ int Run(int argc, char** argv) {
   cli::AddImageRunOptions(app, &args.image_run);
   CLI::Option* apply =
       app.add_option("--apply", args.apply_path,
-                     "Points CSV with x,y,z columns to scale by s (other columns copied verbatim)")
+                     "Point file to multiply by s, streamed (any size): PLY (.ply: ascii or\n"
+                     "binary; vertex x,y,z scaled, every other property, element and comment\n"
+                     "kept), XYZ (.xyz, .txt: 'x y z [rest]' per line, rest kept; '#' comments)\n"
+                     "or points CSV (.csv: x,y,z columns by name, other columns kept)")
           ->type_name("FILE");
   CLI::Option* out =
-      app.add_option("--out", args.out_path, "Where --apply writes the scaled points (atomically)")
+      app.add_option("--out", args.out_path,
+                     "Where --apply writes the scaled points: the input's format, atomically")
           ->type_name("FILE");
+  app.add_option("--format", args.apply_format,
+                 "Format of the --apply file instead of its extension's: ply, xyz, csv")
+      ->check(CLI::IsMember({"auto", "ply", "xyz", "csv"}))
+      ->type_name("FORMAT")
+      ->capture_default_str()
+      ->needs(apply);
   apply->needs(out);
   out->needs(apply);
   app.footer(opl::cli::HelpFooter(
       "  opl_measure --calibration cal.json --spots spots.csv\n"
       "  opl_measure --calibration cal.json --spots spots.csv --json > report.json\n"
       "  opl_measure --calibration cal.json --spots spots.csv --apply scene.csv --out scene_mm.csv\n"
+      "  opl_measure --calibration cal.json --spots spots.csv --apply scan.ply --out scan_mm.ply\n"
+      "  opl_measure --calibration cal.json --spots spots.csv --apply cloud.pts --format xyz \\\n"
+      "      --out cloud_mm.pts\n"
       "  opl_measure --calibration cal.json --spots export.txt --columns id,x,y,z,sx,sy,sz \\\n"
       "      --skip-rows 1 --identified sorted.csv\n"
       "  opl_measure --calibration cal.json --images shots/ --scene scene.json\n"));
@@ -235,6 +303,7 @@ int Run(int argc, char** argv) {
            {"--spots-out", args.spots_out_path}})) {
     return *code;
   }
+  if (std::optional<int> code = CheckOutFormat(args)) return *code;
   if (args.image_run.verbose) cli::ShowSolverLogging();
   if (args.spots.path.empty() == args.images_dir.empty()) {
     return cli::Fail(kTool, "give either --spots or --images (with --scene) (see --help)",
@@ -251,12 +320,7 @@ int Run(int argc, char** argv) {
     if (usage_error) return cli::Fail(kTool, spots.status().message(), cli::kExitUsage);
     return cli::FailInput(kTool, spots.status());
   }
-  std::optional<PointsCsv> points;
-  if (!args.apply_path.empty()) {
-    Result<PointsCsv> read = PointsCsv::Read(args.apply_path);
-    if (!read.ok()) return cli::FailInput(kTool, read.status());
-    points = std::move(read).value();
-  }
+  if (std::optional<int> code = CheckApply(args)) return *code;
 
   Result<MeasureReport> report = MeasureScale(*calibration, spots->spots, MeasureOptions());
   if (!report.ok()) return cli::FailInput(kTool, report.status());
@@ -280,13 +344,8 @@ int Run(int argc, char** argv) {
     identified_csv = std::move(*csv);
   }
 
-  if (points) {
-    if (Status st = points->Scale(report->scale.scale_factor); !st.ok()) {
-      return cli::Fail(kTool, st.message(), cli::kExitNoSolution);
-    }
-    if (Status st = WriteFileAtomically(args.out_path, points->Format()); !st.ok()) {
-      return cli::FailWrite(kTool, st);
-    }
+  if (!args.apply_path.empty()) {
+    if (std::optional<int> code = ApplyScale(args, report->scale.scale_factor)) return *code;
   }
   if (!args.identified_path.empty()) {
     if (Status st = WriteFileAtomically(args.identified_path, identified_csv); !st.ok()) {

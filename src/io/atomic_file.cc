@@ -48,9 +48,27 @@ int WriteAll(int fd, const char* data, size_t size) {
 
 }  // namespace
 
-Status WriteFileAtomically(const std::string& path, const std::string& contents) {
-  std::string dir, name;
-  SplitPath(path, &dir, &name);
+AtomicFileWriter::~AtomicFileWriter() { Abandon(); }
+
+Status AtomicFileWriter::Fail(const std::string& what, int err) {
+  const std::string path = path_;
+  Abandon();
+  return WriteError(path, what, err);
+}
+
+void AtomicFileWriter::Abandon() {
+  if (fd_ >= 0) ::close(fd_);
+  fd_ = -1;
+  if (!temp_path_.empty()) ::unlink(temp_path_.c_str());
+  temp_path_.clear();
+}
+
+Status AtomicFileWriter::Open(const std::string& path) {
+  if (fd_ >= 0) return WriteError(path, "the writer is already open for '" + path_ + "'", 0);
+  path_ = path;
+  bytes_written_ = 0;
+  std::string name;
+  SplitPath(path, &dir_, &name);
   if (name.empty() || name == "." || name == "..") {
     return WriteError(path, "not a file name", 0);
   }
@@ -59,43 +77,57 @@ Status WriteFileAtomically(const std::string& path, const std::string& contents)
 
   // A fresh temporary name in the same directory (so that rename is atomic).
   static std::atomic<unsigned> counter{0};
-  std::string temp_path;
   int fd = -1;
   for (int attempt = 0; attempt < 100 && fd < 0; ++attempt) {
-    temp_path = (dir == "/" ? std::string("/") : dir + "/") + "." + name + ".tmp-" +
-                std::to_string(::getpid()) + "-" + std::to_string(counter++);
-    fd = ::open(temp_path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+    temp_path_ = (dir_ == "/" ? std::string("/") : dir_ + "/") + "." + name + ".tmp-" +
+                 std::to_string(::getpid()) + "-" + std::to_string(counter++);
+    fd = ::open(temp_path_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
     if (fd < 0 && errno != EEXIST) break;
   }
-  if (fd < 0) return WriteError(path, "cannot create a temporary file in '" + dir + "'", errno);
-
-  auto fail = [&](const std::string& what, int err) {
-    if (fd >= 0) ::close(fd);
-    ::unlink(temp_path.c_str());
-    return WriteError(path, what, err);
-  };
+  if (fd < 0) {
+    const int err = errno;
+    temp_path_.clear();
+    return WriteError(path, "cannot create a temporary file in '" + dir_ + "'", err);
+  }
+  fd_ = fd;
   // Keep the permissions of a file we replace. (A directory at `path` is not
   // checked up front: rename fails on it, which cleans up like any failure.)
   if (target_exists && S_ISREG(target_stat.st_mode) &&
-      ::fchmod(fd, target_stat.st_mode & 07777) != 0) {
-    return fail("cannot set permissions", errno);
+      ::fchmod(fd_, target_stat.st_mode & 07777) != 0) {
+    return Fail("cannot set permissions", errno);
   }
-  if (int err = WriteAll(fd, contents.data(), contents.size()); err != 0) {
-    return fail("write failed", err);
-  }
-  if (::fsync(fd) != 0) return fail("fsync failed", errno);
-  const int close_result = ::close(fd);
-  fd = -1;
-  if (close_result != 0) return fail("close failed", errno);
-  if (::rename(temp_path.c_str(), path.c_str()) != 0) return fail("rename failed", errno);
+  return Status::Ok();
+}
 
+Status AtomicFileWriter::Write(const char* data, size_t size) {
+  if (fd_ < 0) return WriteError(path_, "the writer is not open", 0);
+  if (int err = WriteAll(fd_, data, size); err != 0) return Fail("write failed", err);
+  bytes_written_ += static_cast<long long>(size);
+  return Status::Ok();
+}
+
+Status AtomicFileWriter::Commit() {
+  if (fd_ < 0) return WriteError(path_, "the writer is not open", 0);
+  if (::fsync(fd_) != 0) return Fail("fsync failed", errno);
+  const int close_result = ::close(fd_);
+  fd_ = -1;
+  if (close_result != 0) return Fail("close failed", errno);
+  if (::rename(temp_path_.c_str(), path_.c_str()) != 0) return Fail("rename failed", errno);
+  temp_path_.clear();
   // Make the rename durable; failure here does not undo a completed write.
-  const int dir_fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  const int dir_fd = ::open(dir_.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
   if (dir_fd >= 0) {
     (void)::fsync(dir_fd);
     ::close(dir_fd);
   }
   return Status::Ok();
+}
+
+Status WriteFileAtomically(const std::string& path, const std::string& contents) {
+  AtomicFileWriter writer;
+  OPL_RETURN_IF_ERROR(writer.Open(path));
+  OPL_RETURN_IF_ERROR(writer.Write(contents.data(), contents.size()));
+  return writer.Commit();
 }
 
 Result<std::string> ReadFileToString(const std::string& path, long long max_bytes) {

@@ -121,5 +121,45 @@ TEST(ReadFileToString, OnlyRegularFilesOfBoundedSize) {
   EXPECT_EQ(kMaxInputFileBytes, 536870912);
 }
 
+TEST(AtomicFileWriter, StreamsBlocksAndAppearsOnlyOnCommit) {
+  TempDir dir;
+  const std::string path = dir.Write("out.bin", "old");
+  AtomicFileWriter writer;
+  ASSERT_TRUE(writer.Open(path).ok());
+  EXPECT_TRUE(writer.is_open());
+  for (int i = 0; i < 3; ++i) {
+    const std::string block(1000, static_cast<char>('a' + i));
+    ASSERT_TRUE(writer.Write(block.data(), block.size()).ok());
+  }
+  EXPECT_EQ(writer.bytes_written(), 3000);
+  EXPECT_EQ(ReadAll(path), "old");  // untouched until Commit
+  EXPECT_EQ(dir.Entries().size(), 2u);  // out.bin and the temporary file
+  ASSERT_TRUE(writer.Commit().ok());
+  EXPECT_EQ(ReadAll(path), std::string(1000, 'a') + std::string(1000, 'b') + std::string(1000, 'c'));
+  EXPECT_EQ(dir.Entries(), std::vector<std::string>{"out.bin"});
+  EXPECT_FALSE(writer.is_open());
+  EXPECT_THAT(writer.Write("x", 1).message(), HasSubstr("the writer is not open"));
+}
+
+TEST(AtomicFileWriter, AbandonAndDestructorLeaveNothing) {
+  TempDir dir;
+  {
+    AtomicFileWriter writer;
+    ASSERT_TRUE(writer.Open(dir.File("a.ply")).ok());
+    ASSERT_TRUE(writer.Write("partial", 7).ok());
+    writer.Abandon();
+    EXPECT_EQ(writer.temp_path(), "");
+  }
+  {
+    AtomicFileWriter writer;
+    ASSERT_TRUE(writer.Open(dir.File("b.ply")).ok());
+    ASSERT_TRUE(writer.Write("partial", 7).ok());
+  }  // destroyed without Commit
+  EXPECT_TRUE(dir.Entries().empty());
+  AtomicFileWriter writer;
+  EXPECT_THAT(writer.Open(dir.File("missing/c.ply")).message(),
+              StartsWith(dir.File("missing/c.ply") + ": cannot write: cannot create a temporary file"));
+}
+
 }  // namespace
 }  // namespace opl

@@ -14,8 +14,10 @@ namespace testing_support {
 
 class TempDir {
  public:
-  TempDir() {
-    std::string pattern = (std::filesystem::temp_directory_path() / "opl_test_XXXXXX").string();
+  TempDir() : TempDir(std::filesystem::temp_directory_path().string()) {}
+  // In `parent` (e.g. "/dev/shm", where fsync costs nothing).
+  explicit TempDir(const std::string& parent) {
+    std::string pattern = (std::filesystem::path(parent) / "opl_test_XXXXXX").string();
     path_ = ::mkdtemp(pattern.data()) ? pattern : std::string();
   }
   ~TempDir() {

@@ -20,6 +20,46 @@ namespace opl {
 
 Status WriteFileAtomically(const std::string& path, const std::string& contents);
 
+// The same, streamed: for outputs too large to hold in memory (a point cloud
+// of 10 million points). Open() creates the temporary file, Write() appends to
+// it (unbuffered: give it large blocks, e.g. 1-4 MiB), Commit() fsyncs, renames
+// it over the path and fsyncs the directory. Until Commit() succeeds `path` is
+// untouched; Abandon() (or the destructor, or any failing call) removes the
+// temporary file. Errors are IoErrors worded as WriteFileAtomically's.
+//
+//   AtomicFileWriter out;
+//   OPL_RETURN_IF_ERROR(out.Open("cloud_mm.ply"));
+//   while (...) OPL_RETURN_IF_ERROR(out.Write(block.data(), block.size()));
+//   OPL_RETURN_IF_ERROR(out.Commit());
+class AtomicFileWriter {
+ public:
+  AtomicFileWriter() = default;
+  ~AtomicFileWriter();  // Abandon() unless committed
+  AtomicFileWriter(const AtomicFileWriter&) = delete;
+  AtomicFileWriter& operator=(const AtomicFileWriter&) = delete;
+
+  // Creates the temporary file next to `path` (refused when already open).
+  Status Open(const std::string& path);
+  // Appends `size` bytes (retrying short writes and EINTR).
+  Status Write(const char* data, size_t size);
+  // Makes the file appear at `path`, complete. The writer is closed after.
+  Status Commit();
+  // Closes and removes the temporary file; `path` stays as it was.
+  void Abandon();
+
+  bool is_open() const { return fd_ >= 0; }
+  const std::string& path() const { return path_; }
+  const std::string& temp_path() const { return temp_path_; }  // "" when closed
+  long long bytes_written() const { return bytes_written_; }
+
+ private:
+  Status Fail(const std::string& what, int err);
+
+  std::string path_, dir_, temp_path_;
+  int fd_ = -1;
+  long long bytes_written_ = 0;
+};
+
 // The largest input file a reader takes (docs/formats.md, "Limits"): a
 // calibration session of two 201 x 201 grids on 20 screens is about 250 MB of
 // spots CSV; a design's pattern file has at most 40401 beams (a few MB).

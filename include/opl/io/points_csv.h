@@ -12,6 +12,9 @@
 // CSV (src/io/csv.h): RFC 4180 quoting, blank lines skipped (and dropped on
 // output), field counts checked, non-finite coordinates rejected:
 //   "scene.csv:7: field 'z': not finite: 'inf'"
+// This class holds the whole table; opl_measure --apply streams instead
+// (ScalePointFile, opl/io/scale_point_file.h: the same output and messages, a
+// record at a time, any size).
 #pragma once
 
 #include <string>

@@ -304,6 +304,13 @@ Status WriteColmapModel(const ColmapModel& model, const std::string& dir, Colmap
   return Status::Ok();
 }
 
+ColmapModel ScaledColmapModel(const ColmapModel& model, double scale) {
+  ColmapModel scaled = model;
+  for (auto& entry : scaled.images) entry.second.tvec *= scale;
+  for (auto& entry : scaled.points3D) entry.second.xyz_in_world *= scale;
+  return scaled;
+}
+
 Result<CameraIntrinsics> IntrinsicsFromColmap(const ColmapCamera& camera) {
   const int model = camera.model_id;
   const char* name = ColmapCameraModelName(model);

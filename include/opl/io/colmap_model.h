@@ -182,6 +182,12 @@ Result<ColmapModel> ReadColmapModel(const std::string& dir, ColmapFormat format)
 Status WriteColmapModel(const ColmapModel& model, const std::string& dir,
                         ColmapFormat format);
 
+// The model with every length multiplied by `scale`: the points' XYZ and the
+// images' tvec (so every camera centre -R^T tvec is multiplied too).
+// Rotations, cameras, 2D points, colours, errors (pixels) and tracks are
+// unchanged: every pixel projects where it did.
+ColmapModel ScaledColmapModel(const ColmapModel& model, double scale);
+
 // The camera as OPL intrinsics (OpenCV pixel convention). InvalidArgument,
 // naming the camera id, for a model without an exact counterpart:
 //   "COLMAP camera 3: model OPENCV_FISHEYE is not supported (supported:

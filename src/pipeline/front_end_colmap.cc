@@ -119,6 +119,7 @@ Status FrontEndRun::PlaceCamerasFromColmap(const ColmapModel& model, double tie_
   }
   const Eigen::Matrix2d covariance = Eigen::Matrix2d::Identity() * sigma * sigma;
   int dropped_behind = 0;
+  int dropped_narrow = 0;
   for (const Candidate& c : candidates) {
     // Observations in front of their camera (else the adjustment refuses).
     std::vector<BundleObservation> observations;
@@ -143,6 +144,28 @@ Status FrontEndRun::PlaceCamerasFromColmap(const ColmapModel& model, double tie_
       cameras.insert(camera->second);
     }
     if (cameras.size() < 2) continue;
+    // Two images from one camera position (a camera that shot both grids
+    // from where it stood) do not fix the point's depth: the rays must meet
+    // at min_tag_triangulation_angle_deg or more, as for the tags.
+    double max_angle_deg = 0.0;
+    for (int i : cameras) {
+      for (int j : cameras) {
+        if (j <= i) continue;
+        const Eigen::Vector3d ri =
+            c.point->xyz_in_world -
+            bundle.cameras[static_cast<size_t>(i)].cam_from_scene.Inverse().translation;
+        const Eigen::Vector3d rj =
+            c.point->xyz_in_world -
+            bundle.cameras[static_cast<size_t>(j)].cam_from_scene.Inverse().translation;
+        const double angle =
+            std::atan2(ri.cross(rj).norm(), ri.dot(rj)) * 180.0 / kPi;
+        max_angle_deg = std::max(max_angle_deg, angle);
+      }
+    }
+    if (max_angle_deg < options.min_tag_triangulation_angle_deg) {
+      ++dropped_narrow;
+      continue;
+    }
     BundlePoint p;
     p.point_in_scene = c.point->xyz_in_world;
     bundle.points.push_back(p);
@@ -153,6 +176,11 @@ Status FrontEndRun::PlaceCamerasFromColmap(const ColmapModel& model, double tie_
   }
   num_tag_observations = static_cast<int>(bundle.observations.size());
   const int num_tie_points = static_cast<int>(bundle.points.size());
+  if (num_tie_points < 3) {
+    return Status::NoSolution("COLMAP model: " + std::to_string(num_tie_points) +
+                              " tie points seen from two camera positions; at least three are "
+                              "needed");
+  }
 
   // The datum: A the tie point farthest from their centroid, B the farthest
   // from A, C the one farthest from the line AB.
@@ -189,6 +217,12 @@ Status FrontEndRun::PlaceCamerasFromColmap(const ColmapModel& model, double tie_
       std::to_string(num_tie_points) + " tie points with " +
       std::to_string(num_tag_observations) + " observations at " + FormatNumber(sigma, 3) +
       " px; the RMS 'tags' of each image are its tie points')";
+  if (dropped_narrow > 0) {
+    result.warnings.push_back(
+        "COLMAP model: " + std::to_string(dropped_narrow) +
+        " points not used as tie points: their rays meet at less than " +
+        FormatNumber(options.min_tag_triangulation_angle_deg) + " deg (seen from one position)");
+  }
   if (dropped_behind > 0) {
     result.warnings.push_back("COLMAP model: " + std::to_string(dropped_behind) +
                               " tie point observations behind their camera dropped");
@@ -197,7 +231,7 @@ Status FrontEndRun::PlaceCamerasFromColmap(const ColmapModel& model, double tie_
   return Status::Ok();
 }
 
-Status FrontEndRun::MoveToColmapFrame(const ColmapModel& model) {
+Status FrontEndRun::MoveToColmapFrame() {
   // The similarity model_from_datum that maps the adjusted camera centres
   // onto the model's (Umeyama, with scale).
   const int n = static_cast<int>(adjusted->data.cameras.size());
@@ -230,7 +264,6 @@ Status FrontEndRun::MoveToColmapFrame(const ColmapModel& model) {
                               "centres onto the model's (scale " +
                               FormatNumber(scale, 8) + ", RMS " + FormatNumber(rms, 3) +
                               " model units)";
-  (void)model;
 
   for (size_t s = 0; s < spot_group.size(); ++s) {
     const size_t p = static_cast<size_t>(first_spot_point) + s;
@@ -296,7 +329,7 @@ Result<FrontEndResult> RunImageFrontEndFromColmap(const Scene& scene,
   run.PerImageRms();
   run.WarnOutOfRange();
   OPL_RETURN_IF_ERROR(run.RefuseBrokenGeometry());
-  OPL_RETURN_IF_ERROR(run.MoveToColmapFrame(model));
+  OPL_RETURN_IF_ERROR(run.MoveToColmapFrame());
   return std::move(run.result);
 }
 

@@ -99,7 +99,7 @@ struct FrontEndRun {
   Status UseColmapCameras(const ColmapModel& model);
   Status PlaceCamerasFromColmap(const ColmapModel& model, double tie_sigma_px,
                                 int max_tie_points);
-  Status MoveToColmapFrame(const ColmapModel& model);
+  Status MoveToColmapFrame();
 
   const Scene& scene;
   const std::string& images_dir;

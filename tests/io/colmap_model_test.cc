@@ -147,6 +147,31 @@ TEST(ColmapModel, TextBinaryRoundTripIsExact) {
   EXPECT_EQ(ReadAll(bin_dir + "/points3D.bin").size(), 8u + 59 + 51);
 }
 
+TEST(ColmapModel, ScaledModelMultipliesPointsAndCameraCentresAndKeepsPixels) {
+  TempDir dir;
+  Result<ColmapModel> model = ReadColmapModel(WriteTextModel(dir));
+  ASSERT_TRUE(model.ok());
+  const double s = 183.25;
+  const ColmapModel scaled = ScaledColmapModel(*model, s);
+  // Image 1: centre (-2, 1, -3) by hand (ReadsAHandWrittenTextModelFieldByField).
+  EXPECT_TRUE(scaled.images.at(1).CenterInWorld().isApprox(s * Eigen::Vector3d(-2, 1, -3), 1e-15));
+  EXPECT_EQ(scaled.images.at(1).tvec, s * Eigen::Vector3d(1, 2, 3));
+  EXPECT_EQ(scaled.images.at(1).qvec_wxyz, model->images.at(1).qvec_wxyz);
+  EXPECT_EQ(scaled.points3D.at(12).xyz_in_world, s * Eigen::Vector3d(1.5, -2, 3.25));
+  EXPECT_EQ(scaled.cameras.at(1).params, model->cameras.at(1).params);
+  EXPECT_EQ(scaled.images.at(1).points2D[1].xy_px, model->images.at(1).points2D[1].xy_px);
+  EXPECT_EQ(scaled.points3D.at(12).error_px, 0.75);
+  // Point 12 projects to the same pixel in image 1 before and after.
+  Result<CameraIntrinsics> in = IntrinsicsFromColmap(model->cameras.at(1));
+  ASSERT_TRUE(in.ok());
+  Eigen::Vector2d before, after;
+  ASSERT_TRUE(ProjectToPixel(*in, model->images.at(1).CamFromWorld() *
+                                      model->points3D.at(12).xyz_in_world, &before));
+  ASSERT_TRUE(ProjectToPixel(*in, scaled.images.at(1).CamFromWorld() *
+                                      scaled.points3D.at(12).xyz_in_world, &after));
+  EXPECT_NEAR((after - before).norm(), 0.0, 1e-9);
+}
+
 TEST(ColmapModel, BinaryIsPreferredWhenBothFormatsArePresent) {
   TempDir dir;
   Result<ColmapModel> text = ReadColmapModel(WriteTextModel(dir));

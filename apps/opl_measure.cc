@@ -18,6 +18,7 @@
 #include "opl/io/scale_point_file.h"
 #include "opl/io/spots_csv.h"
 #include "opl/pipeline/measure.h"
+#include "opl/pipeline/colmap_measure.h"
 #include "opl/pipeline/measure_images.h"
 #include "opl/pipeline/measure_overlays.h"
 
@@ -37,6 +38,8 @@ struct Args {
   std::string overlays_dir;
   std::string scene_path;
   std::string spots_out_path;
+  std::string colmap_dir;
+  std::string colmap_out_dir;
   int threads = 0;
   bool one_pose_per_camera = false;
   opl::cli::ImageRunArgs image_run;  // --spot-channel, --force, --verbose
@@ -122,14 +125,26 @@ int RunImages(const Args& args) {
     return cli::Fail(kTool, args.scene_path + ": " + st.message(), cli::kExitBadInput);
   }
   if (std::optional<int> code = CheckApply(args)) return *code;
+  std::optional<ColmapModel> colmap;
+  if (!args.colmap_dir.empty()) {
+    Result<ColmapModel> model = ReadColmapModel(args.colmap_dir);
+    if (!model.ok()) return cli::FailInput(kTool, model.status());
+    colmap = std::move(model).value();
+  }
   ImageMeasureOptions options;
   options.front_end.num_threads = args.threads;
   options.front_end.one_pose_per_camera = args.one_pose_per_camera;
   cli::ApplyImageRunOptions(args.image_run, &options.front_end);
   cli::ProgressBar bar("images", cli::StderrIsTerminal());
   options.front_end.progress = bar.StageCallback("detect");
-  Result<ImageMeasureReport> report =
-      MeasureScaleFromImages(*scene, args.images_dir, *calibration, options);
+  Result<ImageMeasureReport> report = Status::NoSolution("not run");
+  if (colmap) {
+    ColmapMeasureOptions colmap_options;
+    colmap_options.image = options;
+    report = MeasureScaleFromColmap(*scene, args.images_dir, *colmap, *calibration, colmap_options);
+  } else {
+    report = MeasureScaleFromImages(*scene, args.images_dir, *calibration, options);
+  }
   bar.Finish();
   if (!report.ok()) return cli::FailInput(kTool, report.status());
   if (args.image_run.verbose) std::cerr << report->front_end.bundle_report;
@@ -159,6 +174,19 @@ int RunImages(const Args& args) {
     std::error_code ec;
     for (const std::string& path : written) std::filesystem::remove(path, ec);
   };
+  // The scaled COLMAP model first (a folder written all at once), so that a
+  // later failure can remove it.
+  if (colmap && !args.colmap_out_dir.empty()) {
+    const ColmapModel scaled =
+        ScaledColmapModel(*colmap, report->measure.scale.scale_factor);
+    if (Status st = WriteColmapModel(scaled, args.colmap_out_dir, colmap->format); !st.ok()) {
+      return cli::FailWrite(kTool, st);
+    }
+  }
+  const auto undo_colmap = [&args]() {
+    std::error_code ec;
+    if (!args.colmap_out_dir.empty()) std::filesystem::remove_all(args.colmap_out_dir, ec);
+  };
   if (!args.overlays_dir.empty()) {
     std::error_code ec;
     for (const auto& [name, bytes] : overlays) {
@@ -166,6 +194,7 @@ int RunImages(const Args& args) {
       std::filesystem::create_directories(path.parent_path(), ec);
       if (Status st = write(path.string(), bytes); !st.ok()) {
         undo();
+        undo_colmap();
         return cli::FailWrite(kTool, st);
       }
     }
@@ -173,6 +202,7 @@ int RunImages(const Args& args) {
   if (!args.apply_path.empty()) {
     if (std::optional<int> code = ApplyScale(args, report->measure.scale.scale_factor)) {
       undo();
+      undo_colmap();
       return *code;
     }
     written.push_back(args.out_path);
@@ -180,6 +210,7 @@ int RunImages(const Args& args) {
   if (!args.spots_out_path.empty()) {
     if (Status st = write(args.spots_out_path, spots_csv); !st.ok()) {
       undo();
+      undo_colmap();
       return cli::FailWrite(kTool, st);
     }
   }
@@ -251,6 +282,17 @@ int Run(int argc, char** argv) {
                "untouched for the whole session); refused when a camera's shots place it\n"
                "more than 5 mm or 2 mrad apart (docs/images.md)")
       ->needs(images);
+  CLI::Option* colmap_option =
+      app.add_option("--colmap", args.colmap_dir,
+                     "With --images: a COLMAP sparse model (folder of cameras, images, points3D;\n"
+                     "text or binary) gives the cameras and poses instead of the tags: each shot's\n"
+                     "image is the model's image of the same name; the model's points are tie\n"
+                     "points of the adjustment; s then scales the model to mm (docs/colmap.md)")
+          ->needs(images);
+  app.add_option("--colmap-out", args.colmap_out_dir,
+                 "With --colmap: write the model scaled by s (points and camera centres times s)\n"
+                 "to this new (or empty) folder, in the format it was read, all files or none")
+      ->needs(colmap_option);
   images->needs(scene);
   scene->needs(images);
   spots_out->needs(images);
@@ -290,15 +332,19 @@ int Run(int argc, char** argv) {
       "      --out cloud_mm.pts\n"
       "  opl_measure --calibration cal.json --spots export.txt --columns id,x,y,z,sx,sy,sz \\\n"
       "      --skip-rows 1 --identified sorted.csv\n"
-      "  opl_measure --calibration cal.json --images shots/ --scene scene.json\n"));
+      "  opl_measure --calibration cal.json --images shots/ --scene scene.json\n"
+      "  opl_measure --calibration cal.json --images shots/ --scene scene.json \\\n"
+      "      --colmap sparse/0 --colmap-out sparse_mm\n"));
   if (std::optional<int> code = opl::cli::ParseCommandLine(app, argc, argv)) return *code;
   if (std::optional<int> code = cli::RefuseOutputsOverInputs(
           kTool,
           {{"--calibration", args.calibration_path},
            {"--spots", args.spots.path},
            {"--apply", args.apply_path},
-           {"--scene", args.scene_path}},
+           {"--scene", args.scene_path},
+           {"--colmap", args.colmap_dir}},
           {{"--out", args.out_path},
+           {"--colmap-out", args.colmap_out_dir},
            {"--identified", args.identified_path},
            {"--spots-out", args.spots_out_path}})) {
     return *code;

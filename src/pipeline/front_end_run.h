@@ -8,6 +8,10 @@
 //   front_end_spots.cc   5-6  exposure groups, matching, the joint
 //                             adjustment, the variance components
 //   front_end_report.cc  7    per-image RMS, warnings, the scene frame
+//   front_end_colmap.cc       the COLMAP path (pipeline/colmap_measure.h):
+//                             cameras and poses from a COLMAP model instead
+//                             of 3-4, its points as tie points, and the
+//                             model's frame instead of 7
 #pragma once
 
 #include <array>
@@ -19,6 +23,7 @@
 
 #include <Eigen/Core>
 
+#include "opl/io/colmap_model.h"
 #include "opl/pipeline/image_front_end.h"
 #include "opl/vision/tag_poses.h"
 
@@ -86,6 +91,16 @@ struct FrontEndRun {
   Status RefuseBrokenGeometry() const;
   Status MoveToSceneFrame();  // 7
 
+  // The COLMAP path, in this order around Detect / GroupShots / MatchAndAdjust:
+  // the shots' images found in the model and their intrinsics taken from it
+  // (before Detect); the bundle of the model's poses and tie points, and
+  // the datum (instead of 3-4); the spots moved into the model's frame
+  // (instead of 7).
+  Status UseColmapCameras(const ColmapModel& model);
+  Status PlaceCamerasFromColmap(const ColmapModel& model, double tie_sigma_px,
+                                int max_tie_points);
+  Status MoveToColmapFrame();
+
   const Scene& scene;
   const std::string& images_dir;
   const FrontEndOptions& options;
@@ -113,6 +128,11 @@ struct FrontEndRun {
   double tag_extra_var_px2 = 0.0;
   double last_spot_variance_factor = 1.0;
   double spot_point_scale = 1.0;  // a posteriori, on the 3D spot covariances
+  // The points of the final adjustment's three-point datum; -1: the frame
+  // tags' first corners (the tag path).
+  std::array<int, 3> datum_points = {-1, -1, -1};
+  // COLMAP path: the model's image of each shot (nullptr: not in the model).
+  std::vector<const ColmapImage*> colmap_image_of_shot;
 };
 
 }  // namespace front_end_internal

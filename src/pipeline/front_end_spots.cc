@@ -147,9 +147,11 @@ Status FrontEndRun::AdjustAll() {
                      static_cast<int>(spot_group.size());
   BundleOptions final_options = bundle_options;
   final_options.gauge = BundleGauge::kThreePointDatum;
-  final_options.datum_points = {first_corner_point.at(frame_tags[0]),
-                                first_corner_point.at(frame_tags[1]),
-                                first_corner_point.at(frame_tags[2])};
+  final_options.datum_points = datum_points[0] >= 0
+                                   ? datum_points
+                                   : std::array<int, 3>{first_corner_point.at(frame_tags[0]),
+                                                        first_corner_point.at(frame_tags[1]),
+                                                        first_corner_point.at(frame_tags[2])};
   final_options.compute_point_covariances = true;
   adjusted = BundleAdjust(bundle, final_options);
   if (!adjusted.ok()) {

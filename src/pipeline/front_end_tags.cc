@@ -377,6 +377,13 @@ Status FrontEndRun::RefuseBrokenGeometry() const {
   for (size_t k = 0; k < worst.size() && k < 3; ++k) {
     names += (k ? ", " : "") + worst[k].second + " " + FormatNumber(worst[k].first, 3) + " px";
   }
+  if (datum_points[0] >= 0) {  // the COLMAP path: tie points instead of tag corners
+    return Status::NoSolution(
+        "the COLMAP model's tie points scatter " + FormatNumber(ratio, 2) +
+        " times (RMS) what their covariances say (largest RMS: " + names +
+        "): wrong intrinsics in the model, or images that do not fit it? "
+        "(FrontEndOptions::force, --force: measure anyway)");
+  }
   return Status::NoSolution(
       "tag corners scatter " + FormatNumber(ratio, 2) +
       " times (RMS) what their covariances say (largest tag RMS: " + names +

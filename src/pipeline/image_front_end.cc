@@ -111,8 +111,13 @@ std::string FrontEndResult::ToText() const {
     out << ", slice " << groups[g].slice << ", " << groups[g].images.size() << " images, " << n
         << " 3D spots\n";
   }
-  out << "scene frame: tags " << frame_tags[0] << " (origin), " << frame_tags[1] << " (axis), "
-      << frame_tags[2] << " (plane); " << tag_centers.size() << " tags placed\n";
+  if (!frame_description.empty()) {
+    out << "scene frame: " << frame_description << "\n";
+  } else {
+    out << "scene frame: tags " << frame_tags[0] << " (origin), " << frame_tags[1]
+        << " (axis), " << frame_tags[2] << " (plane); " << tag_centers.size()
+        << " tags placed\n";
+  }
   out << "adjustment: RMS " << FormatNumber(rms_reprojection_px, 3)
       << " px, variance factor " << FormatNumber(variance_factor, 3) << "; spots' variance factor "
       << FormatNumber(spot_variance_factor, 3);

@@ -101,8 +101,15 @@ Result<ImageMeasureReport> MeasureScaleFromImages(const Scene& scene,
   }
   Result<FrontEndResult> front_end = RunImageFrontEnd(scene, images_dir, options.front_end);
   if (!front_end.ok()) return front_end.status();
+  return MeasureScaleFromFrontEnd(std::move(*front_end), calibration, options);
+}
+
+Result<ImageMeasureReport> MeasureScaleFromFrontEnd(FrontEndResult front_end,
+                                                    const ModuleCalibration& calibration,
+                                                    const ImageMeasureOptions& options) {
+  OPL_RETURN_IF_ERROR(options.Validate());
   ImageMeasureReport report;
-  report.front_end = std::move(*front_end);
+  report.front_end = std::move(front_end);
   const FrontEndResult& fe = report.front_end;
   for (size_t k = 0; k < fe.spots.size(); ++k) {
     const FrontEndSpot& s = fe.spots[k];

@@ -241,6 +241,9 @@ struct FrontEndResult {
   std::map<int, Eigen::Vector3d> tag_centers;
   std::map<int, Eigen::Matrix3d> tag_center_covariances;
   std::array<int, 3> frame_tags = {-1, -1, -1};  // origin, axis, plane
+  // When not empty, what the frame is instead of the frame tags' (the COLMAP
+  // path: "the COLMAP model's frame ...").
+  std::string frame_description;
   double rms_reprojection_px = 0.0;  // final adjustment, every observation
   double variance_factor = 0.0;      // final adjustment
   // The spots' and the tag corners' variance factors after the first

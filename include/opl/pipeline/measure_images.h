@@ -96,4 +96,11 @@ Result<ImageMeasureReport> MeasureScaleFromImages(
     const Scene& scene, const std::string& images_dir, const ModuleCalibration& calibration,
     const ImageMeasureOptions& options = ImageMeasureOptions());
 
+// The steps after the front end (identification, location, s), on a front
+// end's result however it was made (RunImageFrontEnd, or the COLMAP path of
+// pipeline/colmap_measure.h). options.front_end is not used.
+Result<ImageMeasureReport> MeasureScaleFromFrontEnd(
+    FrontEndResult front_end, const ModuleCalibration& calibration,
+    const ImageMeasureOptions& options = ImageMeasureOptions());
+
 }  // namespace opl

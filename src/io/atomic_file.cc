@@ -106,12 +106,17 @@ Status AtomicFileWriter::Write(const char* data, size_t size) {
   return Status::Ok();
 }
 
-Status AtomicFileWriter::Commit() {
+Status AtomicFileWriter::Finish() {
   if (fd_ < 0) return WriteError(path_, "the writer is not open", 0);
   if (::fsync(fd_) != 0) return Fail("fsync failed", errno);
   const int close_result = ::close(fd_);
   fd_ = -1;
   if (close_result != 0) return Fail("close failed", errno);
+  return Status::Ok();
+}
+
+Status AtomicFileWriter::Publish() {
+  if (fd_ >= 0 || temp_path_.empty()) return WriteError(path_, "the writer is not finished", 0);
   if (::rename(temp_path_.c_str(), path_.c_str()) != 0) return Fail("rename failed", errno);
   temp_path_.clear();
   // Make the rename durable; failure here does not undo a completed write.
@@ -121,6 +126,11 @@ Status AtomicFileWriter::Commit() {
     ::close(dir_fd);
   }
   return Status::Ok();
+}
+
+Status AtomicFileWriter::Commit() {
+  OPL_RETURN_IF_ERROR(Finish());
+  return Publish();
 }
 
 Status WriteFileAtomically(const std::string& path, const std::string& contents) {

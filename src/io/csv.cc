@@ -192,7 +192,9 @@ int CsvTable::FindColumn(const std::string& name) const {
 }
 
 Result<CsvTable> ParseCsv(const std::string& text, const std::string& name) {
-  Result<std::vector<CsvRecord>> split = SplitRecords(text, name, SplitOptions());
+  SplitOptions options;
+  options.comment = '#';  // the provenance lines OPL writes (io/provenance_stamp.h)
+  Result<std::vector<CsvRecord>> split = SplitRecords(text, name, options);
   if (!split.ok()) return split.status();
   std::vector<CsvRecord>& records = *split;
   if (records.empty()) return Status::ParseError(name + ": empty file (no header row)");

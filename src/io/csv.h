@@ -57,7 +57,8 @@ Result<std::vector<CsvRecord>> SplitRecords(const std::string& text, const std::
 // else 0.
 size_t SkipBom(const std::string& text);
 
-// Parses `text`; `name` (usually the file path) prefixes every message. Fails on
+// Parses `text`; `name` (usually the file path) prefixes every message. Blank
+// lines and comment lines (first non-blank character '#') are skipped. Fails on
 // an empty input (no header), an empty or duplicate column name, a malformed
 // quoted field or a record whose field count differs from the header's.
 Result<CsvTable> ParseCsv(const std::string& text, const std::string& name);

@@ -44,6 +44,12 @@ class AtomicFileWriter {
   Status Write(const char* data, size_t size);
   // Makes the file appear at `path`, complete. The writer is closed after.
   Status Commit();
+  // Commit() in two steps, for files that must appear together
+  // (io/output_set.h): Finish() fsyncs and closes the temporary file (its
+  // data is on disk, `path` untouched); Publish() then renames it over `path`
+  // and fsyncs the directory.
+  Status Finish();
+  Status Publish();
   // Closes and removes the temporary file; `path` stays as it was.
   void Abandon();
 

@@ -14,6 +14,7 @@
 
 #include "opl/core/message_text.h"
 #include "opl/core/version.h"
+#include "opl/io/provenance_stamp.h"
 #include "opl/model/beam_pattern.h"
 #include "opl/uncertainty/monte_carlo.h"
 
@@ -212,6 +213,36 @@ int RunTool(const std::string& tool, const std::function<int()>& body) {
   } catch (...) {
     return Fail(tool, "internal error: unknown exception", kExitInternalError);
   }
+}
+
+std::optional<int> MakeRunProvenance(const std::string& tool, int argc, const char* const* argv,
+                                     const std::vector<std::string>& inputs, Provenance* out) {
+  std::vector<std::string> files;
+  for (const std::string& path : inputs) {
+    if (path.empty()) continue;
+    std::error_code ec;
+    if (!std::filesystem::is_directory(path, ec)) {
+      files.push_back(path);
+      continue;
+    }
+    std::vector<std::string> inside;
+    for (const auto& entry : std::filesystem::directory_iterator(path, ec)) {
+      if (entry.is_regular_file(ec)) inside.push_back(entry.path().string());
+    }
+    std::sort(inside.begin(), inside.end());
+    files.insert(files.end(), inside.begin(), inside.end());
+  }
+  Result<Provenance> provenance = MakeProvenance(tool, argc, argv, files);
+  if (!provenance.ok()) return FailInput(tool, provenance.status());
+  *out = std::move(*provenance);
+  return std::nullopt;
+}
+
+int PrintJsonToStdout(const std::string& tool, const std::string& json,
+                      const Provenance& provenance) {
+  Result<std::string> stamped = StampProvenance("stdout.json", json, provenance);
+  if (!stamped.ok()) return Fail(tool, "internal error: " + stamped.status().message(), kExitInternalError);
+  return PrintToStdout(tool, *stamped);
 }
 
 int PrintToStdout(const std::string& tool, const std::string& text) {

@@ -11,6 +11,7 @@
 #include <CLI/CLI.hpp>
 
 #include "opl/core/status.h"
+#include "opl/io/provenance.h"
 #include "opl/pipeline/image_front_end.h"
 
 namespace opl {
@@ -107,6 +108,18 @@ int RunTool(const std::string& tool, const std::function<int()>& body);
 // Writes `text` to stdout and flushes; kExitWriteFailed (with a message) when
 // stdout cannot be written (e.g. a closed pipe or a full disk), else kExitOk.
 int PrintToStdout(const std::string& tool, const std::string& text);
+
+// The run's provenance (io/provenance.h): the tool, version, time, command
+// line and the SHA-256 of every input path in `inputs` ("" skipped). A folder
+// among them stands for its regular files (sorted; a COLMAP model). An
+// unreadable input gives its message and exit 3: std::nullopt when fine.
+std::optional<int> MakeRunProvenance(const std::string& tool, int argc, const char* const* argv,
+                                     const std::vector<std::string>& inputs, Provenance* out);
+
+// PrintToStdout of a JSON report with the run's provenance as its last member
+// (what --json prints is often saved as a file: it says how it was made too).
+int PrintJsonToStdout(const std::string& tool, const std::string& json,
+                      const Provenance& provenance);
 
 }  // namespace cli
 }  // namespace opl

@@ -23,6 +23,7 @@
 #include "opl/io/module_calibration_json.h"
 #include "opl/io/points_csv.h"
 #include "opl/io/spots_csv.h"
+#include "opl/io/output_set.h"
 #include "opl/report/calibration_report.h"
 #include "opl/report/grid_heatmap.h"
 
@@ -52,6 +53,8 @@ struct Args {
   int threads = 0;
   bool one_pose_per_camera = false;
   opl::cli::ImageRunArgs image_run;  // --spot-channel, --force, --verbose
+  int argc = 0;  // the command line, for the outputs' provenance
+  char** argv = nullptr;
 };
 
 // Reads the artifact's two targets from the targets file and computes the
@@ -101,8 +104,23 @@ std::optional<int> ArtifactScaling(const Args& args,
 // Writes the calibration JSON (and the --report folder), everything made
 // before the first write; prints `text_before` and the summary.
 int WriteOutputs(const Args& args, const opl::ModuleCalibrationResult& result,
-                 const std::string& text_before) {
+                 const std::string& text_before, const opl::Scene* scene = nullptr) {
   using namespace opl;
+  std::vector<std::string> inputs = {args.spots.path, args.targets_path, args.design_path,
+                                     args.scene_path};
+  if (scene != nullptr) {
+    for (const SceneShot& shot : scene->shots) {
+      const std::filesystem::path image = std::filesystem::path(args.images_dir) / shot.file;
+      std::error_code ec;
+      if (std::filesystem::is_regular_file(image, ec)) inputs.push_back(image.string());
+    }
+  }
+  Provenance provenance;
+  if (std::optional<int> code =
+          cli::MakeRunProvenance(kTool, args.argc, args.argv, inputs, &provenance)) {
+    return *code;
+  }
+  OutputSet outputs(provenance);
   Result<std::string> json = FormatModuleCalibrationJson(result.calibration);
   if (!json.ok()) return cli::Fail(kTool, json.status().message(), cli::kExitNoSolution);
 
@@ -124,20 +142,20 @@ int WriteOutputs(const Args& args, const opl::ModuleCalibrationResult& result,
     for (const auto& [name, text] :
          {std::pair<std::string, std::string>{"beams.csv", BeamQualityCsv(result)},
           {"samples.csv", SampleResidualsCsv(result)}}) {
-      if (Status st = WriteFileAtomically((dir / name).string(), text); !st.ok()) {
+      if (Status st = outputs.Add((dir / name).string(), text); !st.ok()) {
         return cli::FailWrite(kTool, st);
       }
     }
     for (const auto& [name, bytes] : images) {
       const std::string text(bytes.begin(), bytes.end());
-      if (Status st = WriteFileAtomically((dir / name).string(), text); !st.ok()) {
+      if (Status st = outputs.Add((dir / name).string(), text); !st.ok()) {
         return cli::FailWrite(kTool, st);
       }
     }
   }
-  if (Status st = WriteFileAtomically(args.out_path, *json); !st.ok()) {
-    return cli::FailWrite(kTool, st);
-  }
+  if (Status st = outputs.Add(args.out_path, *json); !st.ok()) return cli::FailWrite(kTool, st);
+  // All of them or none (io/output_set.h).
+  if (Status st = outputs.Commit(); !st.ok()) return cli::FailWrite(kTool, st);
   return cli::PrintToStdout(kTool, text_before + CalibrationSummaryText(result));
 }
 
@@ -180,7 +198,7 @@ int RunImages(const Args& args) {
   bar.Finish();
   if (!report.ok()) return cli::FailInput(kTool, report.status());
   if (args.image_run.verbose) std::cerr << report->front_end.bundle_report;
-  return WriteOutputs(args, report->calibration, report->ToText());
+  return WriteOutputs(args, report->calibration, report->ToText(), &*scene);
 }
 
 int Run(int argc, char** argv) {
@@ -295,6 +313,8 @@ int Run(int argc, char** argv) {
       "  opl_calibrate --images session/ --scene session.json --design design.json \\\n"
       "      --out module.json\n"));
   if (std::optional<int> code = cli::ParseCommandLine(app, argc, argv)) return *code;
+  args.argc = argc;
+  args.argv = argv;
   {
     // --report writes beams.csv and samples.csv (and PNGs) into its folder.
     const auto in_report = [&args](const char* name) {

@@ -19,6 +19,7 @@
 #include "opl/io/atomic_file.h"
 #include "opl/io/board_json.h"
 #include "opl/io/cameras_json.h"
+#include "opl/io/output_set.h"
 #include "opl/pipeline/calibrate_camera_images.h"
 #include "opl/report/board_print.h"
 #include "opl/report/coverage_image.h"
@@ -50,6 +51,8 @@ struct Args {
   double tag_mm = 0.0, gap_mm = 0.0, margin_mm = 15.0, dpi = 300.0;
   std::string page = "fit";
   std::string board_json_out;
+  int argc = 0;  // the command line, for the outputs' provenance
+  char** argv = nullptr;
 };
 
 std::string Lower(std::string s) {
@@ -169,6 +172,16 @@ int Calibrate(const Args& args) {
       return cli::Fail(kTool, "cannot encode the coverage picture", cli::kExitInternalError);
     }
     coverage_png.assign(png.begin(), png.end());
+  }
+  // Every output or none, each with the run's provenance (io/output_set.h).
+  std::vector<std::string> inputs = {args.board_path, args.into_path};
+  inputs.insert(inputs.end(), files.begin(), files.end());
+  Provenance provenance;
+  if (std::optional<int> code = cli::MakeRunProvenance(kTool, args.argc, args.argv, inputs, &provenance)) {
+    return *code;
+  }
+  OutputSet outputs(provenance);
+  if (!args.report_dir.empty()) {
     std::filesystem::create_directories(args.report_dir, ec);
     if (ec) {
       return cli::Fail(kTool, args.report_dir + ": cannot create the report folder: " + ec.message(),
@@ -176,15 +189,16 @@ int Calibrate(const Args& args) {
     }
     for (const auto& [name, bytes] : {std::pair<const char*, const std::string*>{kReportJson, &report_json},
                                       {kCoveragePng, &coverage_png}}) {
-      if (Status s = WriteFileAtomically(ReportFile(args, name), *bytes); !s.ok()) return cli::FailWrite(kTool, s);
+      if (Status s = outputs.Add(ReportFile(args, name), *bytes); !s.ok()) return cli::FailWrite(kTool, s);
     }
   }
   if (!args.out_path.empty()) {
-    if (Status s = WriteFileAtomically(args.out_path, out_text); !s.ok()) return cli::FailWrite(kTool, s);
+    if (Status s = outputs.Add(args.out_path, out_text); !s.ok()) return cli::FailWrite(kTool, s);
   }
   if (!args.into_path.empty()) {
-    if (Status s = WriteFileAtomically(args.into_path, into_updated); !s.ok()) return cli::FailWrite(kTool, s);
+    if (Status s = outputs.Add(args.into_path, into_updated); !s.ok()) return cli::FailWrite(kTool, s);
   }
+  if (Status s = outputs.Commit(); !s.ok()) return cli::FailWrite(kTool, s);
   std::string text = cal->ToText() + into_note;
   if (!args.out_path.empty()) text += "  wrote camera '" + args.camera + "' to " + args.out_path + "\n";
   if (!args.report_dir.empty()) {
@@ -216,13 +230,25 @@ int Board(const Args& args) {
   if (Status s = board.Validate(); !s.ok()) return cli::Fail(kTool, "invalid board: " + s.message(), cli::kExitUsage);
   Result<BoardPrintLayout> layout = LayOutBoardPrint(board, options);
   if (!layout.ok()) return cli::Fail(kTool, "invalid board: " + layout.status().message(), cli::kExitUsage);
+  Provenance provenance;
+  if (std::optional<int> code = cli::MakeRunProvenance(kTool, args.argc, args.argv, {}, &provenance)) {
+    return *code;
+  }
+  options.pdf_creator = "OPL " + provenance.tool + " " + provenance.version;
+  options.pdf_subject = FormatProvenanceJson(provenance);
   Result<std::string> bytes = ext == ".pdf" ? RenderBoardPdf(board, options) : RenderBoardPng(board, options);
   if (!bytes.ok()) return cli::Fail(kTool, bytes.status().message(), cli::kExitInternalError);
   const std::string board_json = FormatBoardJson(CalibrationBoard::TagGrid(board));
-  if (Status s = WriteFileAtomically(args.board_out, *bytes); !s.ok()) return cli::FailWrite(kTool, s);
+  OutputSet outputs(provenance);
+  // The PDF carries the provenance in its metadata (set above), the PNG and
+  // the JSON in their own places.
+  Status staged = ext == ".pdf" ? outputs.AddVerbatim(args.board_out, *bytes)
+                                : outputs.Add(args.board_out, *bytes);
+  if (!staged.ok()) return cli::FailWrite(kTool, staged);
   if (!args.board_json_out.empty()) {
-    if (Status s = WriteFileAtomically(args.board_json_out, board_json); !s.ok()) return cli::FailWrite(kTool, s);
+    if (Status s = outputs.Add(args.board_json_out, board_json); !s.ok()) return cli::FailWrite(kTool, s);
   }
+  if (Status s = outputs.Commit(); !s.ok()) return cli::FailWrite(kTool, s);
   std::string text = "board: " + CalibrationBoard::TagGrid(board).Describe() + "\n  page " +
                      FormatPrintf("%.2f", layout->page_width_mm) + " x " + FormatPrintf("%.2f", layout->page_height_mm) +
                      " mm";
@@ -339,6 +365,8 @@ int Run(int argc, char** argv) {
       "  opl_camera board --out board.png --cols 8 --rows 6 --tag-mm 20 --gap-mm 5 --dpi 600\n"));
 
   if (std::optional<int> code = opl::cli::ParseCommandLine(app, argc, argv)) return *code;
+  args.argc = argc;
+  args.argv = argv;
   if (board->parsed()) return Board(args);
   if (args.board_path.empty() && args.chessboard.empty()) {
     return opl::cli::Fail(kTool, "calibrate: give --board FILE or --chessboard COLSxROWS --square-mm X",

@@ -12,7 +12,10 @@
 #include "cli_common.h"
 #include "progress_bar.h"
 #include "spots_input.h"
-#include "opl/io/atomic_file.h"
+#include "opl/core/format.h"
+#include "opl/io/colmap_model.h"
+#include "opl/io/output_set.h"
+#include "opl/io/provenance_stamp.h"
 #include "opl/io/scene_json.h"
 #include "opl/io/module_calibration_json.h"
 #include "opl/io/scale_point_file.h"
@@ -86,15 +89,19 @@ std::optional<int> CheckApply(const Args& args) {
   return std::nullopt;
 }
 
-// --apply FILE --out FILE with the measured s: streamed, atomically. The exit
+// --apply FILE --out FILE with the measured s: streamed, staged in `outputs`
+// (it appears at their commit), with the run's provenance. The exit
 // code on failure (3 bad input, 4 unusable s, 5 cannot write), else nullopt.
-std::optional<int> ApplyScale(const Args& args, double s) {
+std::optional<int> ApplyScale(const Args& args, double s, opl::OutputSet* outputs,
+                              const opl::Provenance* provenance) {
   using namespace opl;
   if (!(std::isfinite(s) && s > 0.0)) {
     return cli::Fail(kTool, "scale factor must be finite and > 0, got " + std::to_string(s),
                      cli::kExitNoSolution);
   }
   ScalePointFileOptions options = ApplyOptions(args);
+  options.outputs = outputs;
+  options.provenance = provenance;
   cli::ProgressBar bar("apply (MiB)", cli::StderrIsTerminal());
   options.progress = [&bar](int64_t done, int64_t total) {
     bar.Update(static_cast<int>(done >> 20), static_cast<int>(total >> 20));
@@ -107,7 +114,7 @@ std::optional<int> ApplyScale(const Args& args, double s) {
 }
 
 // opl_measure --images: the image front end, then the measurement.
-int RunImages(const Args& args) {
+int RunImages(const Args& args, int argc, char** argv) {
   using namespace opl;
   if (!args.identified_path.empty()) {
     return cli::Fail(kTool, "--identified is for --spots; with --images use --spots-out",
@@ -130,6 +137,19 @@ int RunImages(const Args& args) {
     Result<ColmapModel> model = ReadColmapModel(args.colmap_dir);
     if (!model.ok()) return cli::FailInput(kTool, model.status());
     colmap = std::move(model).value();
+  }
+  // The provenance hashes every input, the shots' images included (a missing
+  // image is the front end's to report).
+  std::vector<std::string> inputs = {args.calibration_path, args.scene_path, args.apply_path,
+                                     args.colmap_dir};
+  for (const SceneShot& shot : scene->shots) {
+    const std::filesystem::path image = std::filesystem::path(args.images_dir) / shot.file;
+    std::error_code ec;
+    if (std::filesystem::is_regular_file(image, ec)) inputs.push_back(image.string());
+  }
+  Provenance provenance;
+  if (std::optional<int> code = cli::MakeRunProvenance(kTool, argc, argv, inputs, &provenance)) {
+    return *code;
   }
   ImageMeasureOptions options;
   options.front_end.num_threads = args.threads;
@@ -163,58 +183,52 @@ int RunImages(const Args& args) {
     if (!drawn.ok()) return cli::FailInput(kTool, drawn.status());
     overlays = std::move(*drawn);
   }
-  // Every output or none.
-  std::vector<std::string> written;
-  const auto write = [&written](const std::string& path, const std::string& contents) {
-    Status st = WriteFileAtomically(path, contents);
-    if (st.ok()) written.push_back(path);
-    return st;
-  };
-  const auto undo = [&written]() {
-    std::error_code ec;
-    for (const std::string& path : written) std::filesystem::remove(path, ec);
-  };
-  // The scaled COLMAP model first (a folder written all at once), so that a
-  // later failure can remove it.
-  if (colmap && !args.colmap_out_dir.empty()) {
-    const ColmapModel scaled =
-        ScaledColmapModel(*colmap, report->measure.scale.scale_factor);
-    if (Status st = WriteColmapModel(scaled, args.colmap_out_dir, colmap->format); !st.ok()) {
-      return cli::FailWrite(kTool, st);
-    }
-  }
-  const auto undo_colmap = [&args]() {
-    std::error_code ec;
-    if (!args.colmap_out_dir.empty()) std::filesystem::remove_all(args.colmap_out_dir, ec);
-  };
+  // Every output or none: all are staged (stamped with the provenance), then
+  // committed together. The COLMAP folder is written first (one rename) and
+  // removed if the rest fails.
+  OutputSet outputs(provenance);
   if (!args.overlays_dir.empty()) {
     std::error_code ec;
     for (const auto& [name, bytes] : overlays) {
       const std::filesystem::path path = std::filesystem::path(args.overlays_dir) / name;
       std::filesystem::create_directories(path.parent_path(), ec);
-      if (Status st = write(path.string(), bytes); !st.ok()) {
-        undo();
-        undo_colmap();
-        return cli::FailWrite(kTool, st);
-      }
+      if (Status st = outputs.Add(path.string(), bytes); !st.ok()) return cli::FailWrite(kTool, st);
     }
   }
   if (!args.apply_path.empty()) {
-    if (std::optional<int> code = ApplyScale(args, report->measure.scale.scale_factor)) {
-      undo();
-      undo_colmap();
+    if (std::optional<int> code =
+            ApplyScale(args, report->measure.scale.scale_factor, &outputs, &provenance)) {
       return *code;
     }
-    written.push_back(args.out_path);
   }
   if (!args.spots_out_path.empty()) {
-    if (Status st = write(args.spots_out_path, spots_csv); !st.ok()) {
-      undo();
-      undo_colmap();
+    if (Status st = outputs.Add(args.spots_out_path, spots_csv); !st.ok()) {
       return cli::FailWrite(kTool, st);
     }
   }
-  return cli::PrintToStdout(kTool, args.json ? report->ToJson() : report->ToText());
+  if (colmap && !args.colmap_out_dir.empty()) {
+    const double s = report->measure.scale.scale_factor;
+    const ColmapModel scaled = ScaledColmapModel(*colmap, s);
+    Result<std::string> ply = StampProvenance("points3D.ply", FormatColmapPointsPly(scaled), provenance);
+    Result<std::string> json = StampProvenance(
+        "opl_provenance.json", "{\"scale_factor_mm_per_model_unit\": " + FormatRoundTrip(s) + "}\n",
+        provenance);
+    if (!ply.ok() || !json.ok()) {
+      return cli::FailWrite(kTool, !ply.ok() ? ply.status() : json.status());
+    }
+    if (Status st = WriteColmapModel(scaled, args.colmap_out_dir, colmap->format,
+                                     {{"points3D.ply", *ply}, {"opl_provenance.json", *json}});
+        !st.ok()) {
+      return cli::FailWrite(kTool, st);
+    }
+  }
+  if (Status st = outputs.Commit(); !st.ok()) {
+    std::error_code ec;
+    if (colmap && !args.colmap_out_dir.empty()) std::filesystem::remove_all(args.colmap_out_dir, ec);
+    return cli::FailWrite(kTool, st);
+  }
+  return args.json ? cli::PrintJsonToStdout(kTool, report->ToJson(), provenance)
+                   : cli::PrintToStdout(kTool, report->ToText());
 }
 
 int Run(int argc, char** argv) {
@@ -355,7 +369,7 @@ int Run(int argc, char** argv) {
     return cli::Fail(kTool, "give either --spots or --images (with --scene) (see --help)",
                      cli::kExitUsage);
   }
-  if (!args.images_dir.empty()) return RunImages(args);
+  if (!args.images_dir.empty()) return RunImages(args, argc, argv);
 
   // Read every input first: input errors (3) come before any computation.
   Result<ModuleCalibration> calibration = ReadModuleCalibrationJson(args.calibration_path);
@@ -367,6 +381,11 @@ int Run(int argc, char** argv) {
     return cli::FailInput(kTool, spots.status());
   }
   if (std::optional<int> code = CheckApply(args)) return *code;
+  Provenance provenance;
+  if (std::optional<int> code = cli::MakeRunProvenance(
+          kTool, argc, argv, {args.calibration_path, args.spots.path, args.apply_path}, &provenance)) {
+    return *code;
+  }
 
   Result<MeasureReport> report = MeasureScale(*calibration, spots->spots, MeasureOptions());
   if (!report.ok()) return cli::FailInput(kTool, report.status());
@@ -390,15 +409,21 @@ int Run(int argc, char** argv) {
     identified_csv = std::move(*csv);
   }
 
+  OutputSet outputs(provenance);
   if (!args.apply_path.empty()) {
-    if (std::optional<int> code = ApplyScale(args, report->scale.scale_factor)) return *code;
+    if (std::optional<int> code =
+            ApplyScale(args, report->scale.scale_factor, &outputs, &provenance)) {
+      return *code;
+    }
   }
   if (!args.identified_path.empty()) {
-    if (Status st = WriteFileAtomically(args.identified_path, identified_csv); !st.ok()) {
+    if (Status st = outputs.Add(args.identified_path, identified_csv); !st.ok()) {
       return cli::FailWrite(kTool, st);
     }
   }
-  return cli::PrintToStdout(kTool, args.json ? report->ToJson() : report->ToText());
+  if (Status st = outputs.Commit(); !st.ok()) return cli::FailWrite(kTool, st);
+  return args.json ? cli::PrintJsonToStdout(kTool, report->ToJson(), provenance)
+                   : cli::PrintToStdout(kTool, report->ToText());
 }
 
 }  // namespace

@@ -36,6 +36,8 @@
 #include "opl/io/atomic_file.h"
 #include "opl/io/module_calibration_json.h"
 #include "opl/io/module_design_json.h"
+#include "opl/io/output_set.h"
+#include "opl/io/provenance_stamp.h"
 #include "opl/io/scene_json.h"
 #include "opl/lab/render_scene.h"
 #include "opl/lab/shot_file.h"
@@ -77,7 +79,16 @@ struct Args {
   // images only
   std::string scene_path;
   std::string shots;
+  // Written into every output (io/provenance_stamp.h).
+  opl::Provenance provenance;
 };
+
+// `contents` written to `path` atomically with the run's provenance.
+opl::Status WriteStamped(const Args& args, const std::string& path, const std::string& contents) {
+  opl::Result<std::string> stamped = opl::StampProvenance(path, contents, args.provenance);
+  if (!stamped.ok()) return stamped.status();
+  return opl::WriteFileAtomically(path, *stamped);
+}
 
 // What `spots` and `slices` share before simulating: checks --noise-scale,
 // reads the design, scales its noise and validates the spot options. Returns
@@ -112,7 +123,7 @@ std::optional<int> PrepareSpotSimulation(const Args& args, opl::ModuleDesign* de
 // column numbers the grid photographs, as opl_calibrate reads them (one
 // source per slice): source i (design order) on screen k is slice i * screens
 // + k, and a `screen` column gives k.
-int WriteSimulatedSpots(const std::vector<opl::SimulatedSpot>& simulated,
+int WriteSimulatedSpots(const Args& args, const std::vector<opl::SimulatedSpot>& simulated,
                         const opl::ModuleDesign& design, const std::string& path,
                         int screens = 0) {
   using namespace opl;
@@ -137,7 +148,7 @@ int WriteSimulatedSpots(const std::vector<opl::SimulatedSpot>& simulated,
   }
   Result<std::string> csv = FormatSpotsCsv(SpotsOf(simulated), extra);
   if (!csv.ok()) return cli::FailInput(kTool, csv.status());
-  if (Status st = WriteFileAtomically(path, *csv); !st.ok()) return cli::FailWrite(kTool, st);
+  if (Status st = WriteStamped(args, path, *csv); !st.ok()) return cli::FailWrite(kTool, st);
   return cli::kExitOk;
 }
 
@@ -148,7 +159,7 @@ int SimulateSpotsCommand(const Args& args) {
   if (std::optional<int> code = PrepareSpotSimulation(args, &design, &options)) return *code;
   Result<std::vector<SimulatedSpot>> simulated = SimulateSpots(design, options);
   if (!simulated.ok()) return cli::FailInput(kTool, simulated.status());
-  return WriteSimulatedSpots(*simulated, design, args.out_path);
+  return WriteSimulatedSpots(args, *simulated, design, args.out_path);
 }
 
 int SimulateSlicesCommand(const Args& args) {
@@ -190,7 +201,8 @@ int SimulateSlicesCommand(const Args& args) {
   }
   Result<std::vector<SimulatedSpot>> simulated = SimulateSlices(design, screens, options);
   if (!simulated.ok()) return cli::FailInput(kTool, simulated.status());
-  return WriteSimulatedSpots(*simulated, design, args.out_path, static_cast<int>(screens.size()));
+  return WriteSimulatedSpots(args, *simulated, design, args.out_path,
+                             static_cast<int>(screens.size()));
 }
 
 int CalibrationCommand(const Args& args) {
@@ -201,7 +213,7 @@ int CalibrationCommand(const Args& args) {
   if (!calibration.ok()) return cli::FailInput(kTool, calibration.status());
   Result<std::string> json = FormatModuleCalibrationJson(*calibration);
   if (!json.ok()) return cli::FailInput(kTool, json.status());
-  if (Status st = WriteFileAtomically(args.out_path, *json); !st.ok()) {
+  if (Status st = WriteStamped(args, args.out_path, *json); !st.ok()) {
     return cli::FailWrite(kTool, st);
   }
   return cli::kExitOk;
@@ -221,7 +233,8 @@ int RunAndPrint(const Args& args, Options options, const Run& run) {
     std::fprintf(stderr, "%s: warning: %d of %d iterations failed and were left out; %s\n",
                  kTool, report->failed, report->iterations, report->first_failure.c_str());
   }
-  return cli::PrintToStdout(kTool, args.json ? report->ToJson() : report->ToText());
+  return args.json ? cli::PrintJsonToStdout(kTool, report->ToJson(), args.provenance)
+                   : cli::PrintToStdout(kTool, report->ToText());
 }
 
 int CalibrationMonteCarloCommand(const Args& args, const opl::ModuleDesign& design) {
@@ -325,13 +338,15 @@ int SweepCommand(const Args& args) {
     if (!rendered.ok()) return cli::Fail(kTool, "plot: " + rendered.status().message(), cli::kExitInternalError);
     png = std::move(*rendered);
   }
-  if (Status st = WriteFileAtomically(args.out_path, csv); !st.ok()) return cli::FailWrite(kTool, st);
+  // Both or neither (io/output_set.h).
+  OutputSet outputs(args.provenance);
+  if (Status st = outputs.Add(args.out_path, csv); !st.ok()) return cli::FailWrite(kTool, st);
   if (!args.plot_path.empty()) {
-    if (Status st = WriteFileAtomically(args.plot_path, std::string(png.begin(), png.end()));
-        !st.ok()) {
+    if (Status st = outputs.Add(args.plot_path, std::string(png.begin(), png.end())); !st.ok()) {
       return cli::FailWrite(kTool, st);
     }
   }
+  if (Status st = outputs.Commit(); !st.ok()) return cli::FailWrite(kTool, st);
 
   char line[256];
   std::snprintf(line, sizeof(line), "%-16s %-7s %12s %12s %12s %7s %13s %6s\n",
@@ -477,7 +492,7 @@ int ImagesCommand(const Args& args) {
           st = Status::IoError(path + ": " + file.status().message());
           is_write = true;
         } else {
-          st = WriteFileAtomically(path, *file);
+          st = WriteStamped(args, path, *file);
           is_write = !st.ok();
         }
       }
@@ -502,7 +517,7 @@ int ImagesCommand(const Args& args) {
 
   const std::string truth_path = (out_dir / "truth.json").string();
   if (failure.ok()) {
-    failure = WriteFileAtomically(truth_path, FormatSceneTruthJson(*renderer, rendered));
+    failure = WriteStamped(args, truth_path, FormatSceneTruthJson(*renderer, rendered));
     write_failure = !failure.ok();
   }
   if (!failure.ok()) {
@@ -831,6 +846,19 @@ int Run(int argc, char** argv) {
           kTool, {{"--design", args.design_path}, {"--scene", args.scene_path}},
           {{"--out", args.out_path}, {"--plot", args.plot_path}})) {
     return *code;
+  }
+  {
+    // The provenance hashes the inputs that exist (a missing one is its
+    // reader's to report, with its own message).
+    std::vector<std::string> inputs;
+    for (const std::string& path : {args.design_path, args.scene_path}) {
+      std::error_code ec;
+      if (!path.empty() && std::filesystem::is_regular_file(path, ec)) inputs.push_back(path);
+    }
+    if (std::optional<int> code =
+            opl::cli::MakeRunProvenance(kTool, argc, argv, inputs, &args.provenance)) {
+      return *code;
+    }
   }
   if (images->parsed()) {
     if (images_threads->count() == 0) args.threads = 1;

@@ -4,6 +4,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <cmath>
@@ -251,7 +252,9 @@ Result<ColmapModel> ReadColmapModel(const std::string& dir, ColmapFormat format)
   return model;
 }
 
-Status WriteColmapModel(const ColmapModel& model, const std::string& dir, ColmapFormat format) {
+Status WriteColmapModel(const ColmapModel& model, const std::string& dir,
+                        ColmapFormat format,
+                        const std::vector<std::pair<std::string, std::string>>& extra_files) {
   namespace fs = std::filesystem;
   OPL_RETURN_IF_ERROR(model.Validate());
   const auto write_error = [&](const std::string& what) {
@@ -292,6 +295,15 @@ Status WriteColmapModel(const ColmapModel& model, const std::string& dir, Colmap
     written = WriteFileAtomically(JoinPath(temp, *name), *contents);
     if (!written.ok()) break;
   }
+  for (const auto& [name, contents] : extra_files) {
+    if (!written.ok()) break;
+    if (name.empty() || name.find('/') != std::string::npos || name == "." || name == ".." ||
+        name == names.cameras || name == names.images || name == names.points3D) {
+      written = write_error("'" + name + "' is not a plain file name beside the model's");
+      break;
+    }
+    written = WriteFileAtomically(JoinPath(temp, name), contents);
+  }
   if (written.ok() && ::rename(temp.c_str(), target.c_str()) != 0) {
     written = write_error("cannot rename the temporary folder: " + ErrnoText(errno));
   }
@@ -302,6 +314,38 @@ Status WriteColmapModel(const ColmapModel& model, const std::string& dir, Colmap
   const int err = SyncDir(parent);
   if (err != 0) return write_error("cannot sync '" + parent + "': " + ErrnoText(err));
   return Status::Ok();
+}
+
+std::string FormatColmapPointsPly(const ColmapModel& model) {
+  std::string header = "ply\nformat binary_little_endian 1.0\n";
+  if (!model.points3D.empty()) {
+    header += "comment COLMAP points3D, POINT3D_ID " +
+              std::to_string(model.points3D.begin()->first) + " to " +
+              std::to_string(model.points3D.rbegin()->first) + " in increasing order\n";
+  }
+  header += "element vertex " + std::to_string(model.points3D.size()) +
+            "\nproperty double x\nproperty double y\nproperty double z\n"
+            "property uchar red\nproperty uchar green\nproperty uchar blue\n"
+            "property double error\nproperty int track_length\nend_header\n";
+  constexpr size_t kRecord = 3 * 8 + 3 + 8 + 4;
+  std::string body(model.points3D.size() * kRecord, '\0');
+  char* p = body.data();
+  const uint16_t one = 1;
+  const bool little = *reinterpret_cast<const unsigned char*>(&one) == 1;
+  const auto put = [&p, little](const void* value, size_t bytes) {  // little endian
+    std::memcpy(p, value, bytes);
+    if (!little) std::reverse(p, p + bytes);
+    p += bytes;
+  };
+  for (const auto& entry : model.points3D) {
+    const ColmapPoint3D& point = entry.second;
+    for (int k = 0; k < 3; ++k) put(&point.xyz_in_world[k], 8);
+    put(point.rgb.data(), 3);
+    put(&point.error_px, 8);
+    const int32_t track = static_cast<int32_t>(point.track.size());
+    put(&track, 4);
+  }
+  return header + body;
 }
 
 ColmapModel ScaledColmapModel(const ColmapModel& model, double scale) {

@@ -298,8 +298,9 @@ const char* const kAxis[3] = {"x", "y", "z"};
 
 class PlyScaler {
  public:
-  PlyScaler(InputFile& in, OutputBuffer* out, double s, ScaleCounts* counts)
-      : in_(in), out_(out), s_(s), counts_(counts) {}
+  PlyScaler(InputFile& in, OutputBuffer* out, double s, ScaleCounts* counts,
+            const std::string& comment_lines)
+      : in_(in), out_(out), s_(s), counts_(counts), comment_lines_(comment_lines) {}
 
   Status Run(bool header_only) {
     OPL_RETURN_IF_ERROR(ReadHeader());
@@ -309,6 +310,13 @@ class PlyScaler {
     out_->Append(text.data(), header_.first_element_offset);
     out_->Append("comment OPL scaled vertex x, y, z by s = " + FormatRoundTrip(s_) +
                  header_.line_break);
+    for (char c : comment_lines_) {
+      if (c == '\n') {
+        out_->Append(header_.line_break);
+      } else {
+        out_->Append(&c, 1);
+      }
+    }
     out_->Append(text.data() + header_.first_element_offset,
                  text.size() - header_.first_element_offset);
     swap_ = (header_.encoding == PlyEncoding::kBinaryBigEndian) == HostIsLittleEndian();
@@ -658,6 +666,7 @@ class PlyScaler {
   OutputBuffer* out_;
   const double s_;
   ScaleCounts* counts_;
+  const std::string comment_lines_;
   PlyHeader header_;
   bool swap_ = false;
   int axis_[3] = {-1, -1, -1};  // property indices of x, y, z in the current element
@@ -670,8 +679,8 @@ class PlyScaler {
 }  // namespace
 
 Status ScalePly(InputFile& in, OutputBuffer* out, double s, bool header_only,
-                ScaleCounts* counts) {
-  return PlyScaler(in, out, s, counts).Run(header_only);
+                ScaleCounts* counts, const std::string& comment_lines) {
+  return PlyScaler(in, out, s, counts, comment_lines).Run(header_only);
 }
 
 }  // namespace point_file_internal

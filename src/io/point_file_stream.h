@@ -102,8 +102,11 @@ struct ScaleCounts {
 // `header_only`: stop after the header (checking an input before a long run).
 // Input errors are ParseErrors naming in.path(); output errors are left in
 // out->status() (the scaler stops at the first).
+// `comment_lines`: complete header lines written after OPL's own comment
+// (the provenance, io/provenance_stamp.h), "" for none; "\n" line breaks,
+// converted to the header's.
 Status ScalePly(InputFile& in, OutputBuffer* out, double s, bool header_only,
-                ScaleCounts* counts);
+                ScaleCounts* counts, const std::string& comment_lines);
 Status ScaleXyz(InputFile& in, OutputBuffer* out, double s, bool header_only,
                 ScaleCounts* counts);
 Status ScaleCsv(InputFile& in, OutputBuffer* out, double s, bool header_only,

@@ -48,6 +48,20 @@ class CsvScaler {
         ++line_;
         continue;
       }
+      if (in_.data()[probe] == '#') {  // a comment line (provenance...): copied as it is
+        const char* nl = static_cast<const char*>(
+            std::memchr(in_.data() + probe, '\n', in_.size() - probe));
+        if (nl == nullptr && !in_.at_eof()) {
+          OPL_RETURN_IF_ERROR(More());
+          continue;
+        }
+        const size_t end = nl != nullptr ? static_cast<size_t>(nl - in_.data()) + 1 : in_.size();
+        if (!header_only) out_->Append(in_.data() + pos_, end - pos_);
+        if (nl == nullptr) out_->Append("\n");
+        pos_ = end;
+        ++line_;
+        continue;
+      }
       size_t end = 0;
       int64_t end_line = 0;
       Status error;

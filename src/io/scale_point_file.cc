@@ -18,10 +18,15 @@ constexpr int64_t kMinBufferBytes = 4096;
 constexpr int64_t kMaxBufferBytes = int64_t{1} << 30;
 
 Status Dispatch(PointFileFormat format, InputFile& in, OutputBuffer* out, double s,
-                bool header_only, ScaleCounts* counts) {
+                bool header_only, ScaleCounts* counts, const Provenance* provenance = nullptr) {
+  if (provenance != nullptr && !header_only && format != PointFileFormat::kPly) {
+    out->Append(FormatProvenanceComment(*provenance, "# "));
+  }
   switch (format) {
     case PointFileFormat::kPly:
-      return point_file_internal::ScalePly(in, out, s, header_only, counts);
+      return point_file_internal::ScalePly(
+          in, out, s, header_only, counts,
+          provenance != nullptr ? FormatProvenanceComment(*provenance, "comment ") : "");
     case PointFileFormat::kXyz:
       return point_file_internal::ScaleXyz(in, out, s, header_only, counts);
     case PointFileFormat::kCsv:
@@ -119,26 +124,38 @@ Status ScalePointFile(const std::string& in_path, const std::string& out_path, d
     OutputBuffer discard(nullptr, kMinBufferBytes);
     OPL_RETURN_IF_ERROR(Dispatch(sum.format, probe, &discard, s, true, &counts));
   }
-  AtomicFileWriter writer;
-  if (Status st = writer.Open(out_path); !st.ok()) {
+  AtomicFileWriter own_writer;
+  AtomicFileWriter* writer = &own_writer;
+  if (options.outputs != nullptr) {
+    Result<AtomicFileWriter*> staged = options.outputs->AddStreamed(out_path);
+    if (!staged.ok()) {
+      sum.output_failed = true;
+      return staged.status();
+    }
+    writer = *staged;
+  } else if (Status st = own_writer.Open(out_path); !st.ok()) {
     sum.output_failed = true;
     return st;
   }
-  OutputBuffer out(&writer, static_cast<size_t>(options.buffer_bytes));
-  Status st = Dispatch(sum.format, in, &out, s, false, &counts);
+  OutputBuffer out(writer, static_cast<size_t>(options.buffer_bytes));
+  Status st = Dispatch(sum.format, in, &out, s, false, &counts, options.provenance);
   if (st.ok()) out.Flush();
   if (st.ok() && out.failed()) {
     sum.output_failed = true;
     return out.status();  // the writer has removed its temporary file
   }
-  if (!st.ok()) return st;  // the writer's destructor removes the temporary file
-  if (Status commit = writer.Commit(); !commit.ok()) {
+  if (!st.ok()) {
+    writer->Abandon();  // (own_writer's destructor would too; a staged one is the set's)
+    return st;
+  }
+  if (Status commit = options.outputs != nullptr ? writer->Finish() : writer->Commit();
+      !commit.ok()) {
     sum.output_failed = true;
     return commit;
   }
   sum.num_points = counts.num_points;
   sum.bytes_read = in.offset() + static_cast<int64_t>(in.size());
-  sum.bytes_written = writer.bytes_written();
+  sum.bytes_written = writer->bytes_written();
   return Status::Ok();
 }
 

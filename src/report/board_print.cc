@@ -223,7 +223,12 @@ Result<std::string> RenderBoardPdf(const TagBoard& board, const BoardPrintOption
   cairo_surface_t* surface = cairo_pdf_surface_create_for_stream(
       AppendBytes, &bytes, layout->page_width_mm * kPointsPerMm, layout->page_height_mm * kPointsPerMm);
   cairo_pdf_surface_set_metadata(surface, CAIRO_PDF_METADATA_TITLE, "OPL calibration board");
-  cairo_pdf_surface_set_metadata(surface, CAIRO_PDF_METADATA_CREATOR, "opl_camera board");
+  cairo_pdf_surface_set_metadata(
+      surface, CAIRO_PDF_METADATA_CREATOR,
+      options.pdf_creator.empty() ? "opl_camera board" : options.pdf_creator.c_str());
+  if (!options.pdf_subject.empty()) {
+    cairo_pdf_surface_set_metadata(surface, CAIRO_PDF_METADATA_SUBJECT, options.pdf_subject.c_str());
+  }
   cairo_t* cr = cairo_create(surface);
   cairo_scale(cr, kPointsPerMm, kPointsPerMm);
   DrawPage(cr, board, *layout);

@@ -57,6 +57,7 @@
 #include <map>
 #include <string>
 #include <vector>
+#include <utility>
 
 #include <Eigen/Core>
 
@@ -179,8 +180,18 @@ Result<ColmapModel> ReadColmapModel(const std::string& dir, ColmapFormat format)
 // "<dir>: exists and is not empty: ..."). Numbers in text are written as the
 // shortest decimal that reads back as exactly the same double. Records are
 // written in increasing id order.
+// `extra_files` (name, bytes) are written into the folder with the model and
+// appear with it (opl_measure --colmap-out: the points as PLY, the run's
+// provenance); a name must be a plain file name other than the model's.
 Status WriteColmapModel(const ColmapModel& model, const std::string& dir,
-                        ColmapFormat format);
+                        ColmapFormat format,
+                        const std::vector<std::pair<std::string, std::string>>& extra_files = {});
+
+// The model's 3D points as a binary little-endian PLY: element vertex with
+// double x, y, z, uchar red, green, blue, double error (px, COLMAP's mean
+// reprojection error) and int track_length, in increasing point id order;
+// a comment line names the point ids' range. For viewers and point tools.
+std::string FormatColmapPointsPly(const ColmapModel& model);
 
 // The model with every length multiplied by `scale`: the points' XYZ and the
 // images' tvec (so every camera centre -R^T tvec is multiplied too).

@@ -47,6 +47,8 @@
 #include <string>
 
 #include "opl/core/status.h"
+#include "opl/io/output_set.h"
+#include "opl/io/provenance.h"
 
 namespace opl {
 
@@ -72,6 +74,13 @@ struct ScalePointFileOptions {
   // Bytes of each of the two buffers (input, output). At least 4096; default
   // 4 MiB (larger buys nothing measurable, docs/formats.md).
   int64_t buffer_bytes = int64_t{4} << 20;
+  // When set, the output carries this provenance (io/provenance_stamp.h):
+  // "comment opl ..." lines after the PLY's own OPL comment, "# opl ..."
+  // lines first in XYZ and CSV.
+  const Provenance* provenance = nullptr;
+  // When set, the output is staged in this set (finished, not yet renamed):
+  // it appears with the run's other outputs at outputs->Commit().
+  OutputSet* outputs = nullptr;
   // Called after every read with (bytes read so far, input file size).
   std::function<void(int64_t bytes_read, int64_t bytes_total)> progress;
 

@@ -41,6 +41,11 @@ struct BoardPrintOptions {
   double margin_mm = 15.0;   // white space left, top and right of the tags [mm]
   std::string page = "fit";  // "fit", "a4", "a3" or "letter"
   double dpi = 300.0;        // PNG only: pixels per inch, in [50, 2400]
+  // PDF only: the document's Creator and Subject metadata (the tool's
+  // provenance, io/provenance.h: "OPL opl_camera 0.1.0 ..." and its JSON);
+  // empty: "opl_camera board" and none.
+  std::string pdf_creator;
+  std::string pdf_subject;
   Status Validate() const;
 };
 

@@ -173,7 +173,7 @@ int RunImages(const Args& args) {
                      "'artifact' names the artifact's tags",
                      cli::kExitUsage);
   }
-  Result<Scene> scene = ReadSceneJson(args.scene_path);
+  Result<Scene> scene = ReadSceneJson(args.scene_path, SceneUse::kMeasure);
   if (!scene.ok()) return cli::FailInput(kTool, scene.status());
   if (Status st = CheckSceneHasLasers(*scene); !st.ok()) {
     return cli::Fail(kTool, args.scene_path + ": " + st.message(), cli::kExitBadInput);

@@ -126,7 +126,7 @@ int RunImages(const Args& args, int argc, char** argv) {
   }
   Result<ModuleCalibration> calibration = ReadModuleCalibrationJson(args.calibration_path);
   if (!calibration.ok()) return cli::FailInput(kTool, calibration.status());
-  Result<Scene> scene = ReadSceneJson(args.scene_path);
+  Result<Scene> scene = ReadSceneJson(args.scene_path, SceneUse::kMeasure);
   if (!scene.ok()) return cli::FailInput(kTool, scene.status());
   if (Status st = CheckSceneHasLasers(*scene); !st.ok()) {
     return cli::Fail(kTool, args.scene_path + ": " + st.message(), cli::kExitBadInput);

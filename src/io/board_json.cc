@@ -40,7 +40,7 @@ Result<CalibrationBoard> ParseBoardJson(const std::string& text, const std::stri
   if (type == "tag_grid") {
     OPL_RETURN_IF_ERROR(r.CheckKeys(root, "",
                                     {"format", "version", "description", "type", "family", "cols", "rows",
-                                     "first_id", "tag_size_mm", "gap_mm", "pitch_mm"}));
+                                     "first_id", "tag_size_mm", "gap_mm", "pitch_mm", "provenance"}));
     if (const json* f = JsonReader::Find(root, "family")) {
       std::string family;
       OPL_RETURN_IF_ERROR(r.String(*f, "family", &family));
@@ -81,7 +81,7 @@ Result<CalibrationBoard> ParseBoardJson(const std::string& text, const std::stri
   } else if (type == "chessboard") {
     OPL_RETURN_IF_ERROR(r.CheckKeys(root, "",
                                     {"format", "version", "description", "type", "inner_cols", "inner_rows",
-                                     "square_mm"}));
+                                     "square_mm", "provenance"}));
     board.kind = CalibrationBoard::Kind::kChessboard;
     Chessboard& c = board.chessboard;
     OPL_RETURN_IF_ERROR(RequiredInteger(r, root, "inner_cols", &c.inner_columns));

@@ -30,7 +30,7 @@ Result<std::vector<SceneCamera>> ParseCamerasJson(const std::string& text, const
     return r.Error("", "expected a JSON object at the top level, got " + JsonReader::Describe(root));
   }
   OPL_RETURN_IF_ERROR(r.CheckFormatAndVersion(root, "opl.cameras", kVersion));
-  OPL_RETURN_IF_ERROR(r.CheckKeys(root, "", {"format", "version", "description", "cameras"}));
+  OPL_RETURN_IF_ERROR(r.CheckKeys(root, "", {"format", "version", "description", "cameras", "provenance"}));
   if (const json* d = JsonReader::Find(root, "description")) {
     std::string ignored;
     OPL_RETURN_IF_ERROR(r.String(*d, "description", &ignored));

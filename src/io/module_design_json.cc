@@ -59,7 +59,7 @@ class Reader : public json_internal::JsonReader {
     const json* v = nullptr;
     OPL_RETURN_IF_ERROR(CheckKeys(root, "",
                                   {"format", "version", "description", "sources", "surface",
-                                   "spot_noise_mm", "noise_frame_rotation_xyz_rad"}));
+                                   "spot_noise_mm", "noise_frame_rotation_xyz_rad", "provenance"}));
     if (const json* d = Find(root, "description")) {
       std::string ignored;
       OPL_RETURN_IF_ERROR(String(*d, "description", &ignored));

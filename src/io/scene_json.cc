@@ -36,8 +36,8 @@ class SceneReader : public json_internal::JsonReader {
     return Status::Ok();
   }
 
-  SceneReader(std::string name, std::string base_dir)
-      : JsonReader(std::move(name)), base_dir_(std::move(base_dir)) {}
+  SceneReader(std::string name, std::string base_dir, SceneUse use)
+      : JsonReader(std::move(name)), base_dir_(std::move(base_dir)), use_(use) {}
 
   Result<Scene> Parse(const std::string& text) {
     Result<json> root = ParseText(text);
@@ -56,11 +56,14 @@ class SceneReader : public json_internal::JsonReader {
     OPL_RETURN_IF_ERROR(CheckFormatAndVersion(root, "opl.scene", kVersion));
     OPL_RETURN_IF_ERROR(CheckKeys(root, "",
                                   {"format", "version", "description", "cameras", "tags", "frame",
-                                   "artifact", "module", "spots", "image", "seed", "shots"}));
+                                   "artifact", "module", "spots", "image", "seed", "shots",
+                                   "provenance"}));
     if (const json* d = Find(root, "description")) {
       std::string ignored;
       OPL_RETURN_IF_ERROR(String(*d, "description", &ignored));
     }
+    // How the file was made (docs/formats.md, "Provenance"): informative.
+    if (const json* p = Find(root, "provenance")) OPL_RETURN_IF_ERROR(CheckObject(*p, "provenance"));
     const json* v = nullptr;
     OPL_RETURN_IF_ERROR(Require(root, "", "cameras", &v));
     OPL_RETURN_IF_ERROR(CheckArray(*v, "cameras"));
@@ -197,6 +200,8 @@ class SceneReader : public json_internal::JsonReader {
     }
     const json* v = nullptr;
     const std::string lpath = Join(path, "placements");
+    // Measuring finds the tags in the images: the list is optional then.
+    if (use_ == SceneUse::kMeasure && Find(t, "placements") == nullptr) return Status::Ok();
     OPL_RETURN_IF_ERROR(Require(t, path, "placements", &v));
     OPL_RETURN_IF_ERROR(CheckArray(*v, lpath));
     std::map<int, size_t> index_of_id;
@@ -242,6 +247,7 @@ class SceneReader : public json_internal::JsonReader {
     if (m.is_string()) {
       const std::string file = m.get<std::string>();
       if (file.empty()) return Error("module", "must not be empty");
+      if (use_ == SceneUse::kMeasure) return Status::Ok();  // not used: not opened
       std::filesystem::path p(file);
       if (p.is_relative() && !base_dir_.empty()) p = std::filesystem::path(base_dir_) / p;
       Result<ModuleDesign> design = ReadModuleDesignJson(p.string());
@@ -256,6 +262,7 @@ class SceneReader : public json_internal::JsonReader {
       return Error("module", "expected the path of a module design JSON or a design object, got " +
                                  Describe(m));
     }
+    if (use_ == SceneUse::kMeasure) return Status::Ok();  // not used: not parsed
     Result<ModuleDesign> design = ParseModuleDesignValue(m, name(), "module", base_dir_);
     if (!design.ok()) return design.status();
     scene->module = std::move(*design);
@@ -281,14 +288,15 @@ class SceneReader : public json_internal::JsonReader {
   }
 
   std::string base_dir_;
+  SceneUse use_;
 };
 
 }  // namespace
 
 Result<Scene> ParseSceneJson(const std::string& text, const std::string& name_for_messages,
-                             const std::string& base_dir) {
+                             const std::string& base_dir, SceneUse use) {
   try {
-    return SceneReader(name_for_messages, base_dir).Parse(text);
+    return SceneReader(name_for_messages, base_dir, use).Parse(text);
   } catch (const std::exception& e) {
     // Defensive: nothing above should throw past the parse, but never let it escape.
     return Status::ParseError(name_for_messages + ": " + e.what());
@@ -377,10 +385,49 @@ std::string FormatSceneTruthJson(const SceneRenderer& renderer,
   return root.dump(1) + "\n";
 }
 
-Result<Scene> ReadSceneJson(const std::string& path) {
+Result<Scene> ReadSceneJson(const std::string& path, SceneUse use) {
   Result<std::string> text = ReadFileToString(path);
   if (!text.ok()) return text.status();
-  return ParseSceneJson(*text, path, std::filesystem::path(path).parent_path().string());
+  return ParseSceneJson(*text, path, std::filesystem::path(path).parent_path().string(), use);
+}
+
+std::string FormatMeasurementSceneJson(const Scene& scene, const std::string& description,
+                                       const std::string& provenance_json) {
+  using ojson = nlohmann::ordered_json;
+  ojson root;
+  root["format"] = "opl.scene";
+  root["version"] = kVersion;
+  if (!description.empty()) root["description"] = description;
+  if (!provenance_json.empty()) root["provenance"] = ojson::parse(provenance_json);
+  root["cameras"] = ojson::array();
+  for (const SceneCamera& c : scene.cameras) {
+    root["cameras"].push_back(json_internal::SceneCameraToJson(c));
+  }
+  ojson tags;
+  tags["family"] = scene.tags.family;
+  tags["size_mm"] = scene.tags.size_mm;
+  if (!scene.tags.tags.empty()) {
+    tags["placements"] = ojson::array();
+    for (const SceneTag& t : scene.tags.tags) tags["placements"].push_back({{"id", t.id}});
+  }
+  root["tags"] = tags;
+  if (scene.frame) {
+    root["frame"] = {{"origin_tag", scene.frame->origin_tag},
+                     {"axis_tag", scene.frame->axis_tag},
+                     {"plane_tag", scene.frame->plane_tag}};
+  }
+  if (scene.artifact) {
+    root["artifact"] = {{"tag_1", scene.artifact->tag_1},
+                        {"tag_2", scene.artifact->tag_2},
+                        {"length_mm", scene.artifact->length_mm},
+                        {"length_sigma_mm", scene.artifact->length_sigma_mm}};
+  }
+  root["shots"] = ojson::array();
+  for (const SceneShot& s : scene.shots) {
+    root["shots"].push_back(
+        {{"camera", s.camera}, {"file", s.file}, {"lasers", s.lasers}, {"slice", s.slice}});
+  }
+  return root.dump(2) + "\n";
 }
 
 }  // namespace opl

@@ -148,8 +148,13 @@ Status Scene::Validate() const {
       return Bad(path + ".scene_from_tag", "not finite or not a unit quaternion");
     }
   }
+  // A measured scene may leave its tags unlisted (the front end finds them in
+  // the images); listed, they must hold the frame and artifact tags.
   auto check_tag = [&](const std::string& field, int id) {
-    if (tag_index.count(id) == 0) {
+    if (id < 0 || id > kMaxTagId) {
+      return Bad(field, std::to_string(id) + ": must be in [0, 586] (tag36h11)");
+    }
+    if (!tags.tags.empty() && tag_index.count(id) == 0) {
       return Bad(field, "tag " + std::to_string(id) + " is not among the scene's tags");
     }
     return Status::Ok();

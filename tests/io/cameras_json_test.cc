@@ -160,5 +160,30 @@ TEST(BoardJson, ReadsBothKindsAndNamesBadFields) {
   EXPECT_EQ(missing.status().message().rfind(dir.File("none.json") + ": cannot open", 0), 0u) << missing.status().message();
 }
 
+// Every JSON file OPL writes may carry a top-level "provenance" record
+// (docs/formats.md, "Provenance"): the readers that refuse unknown fields
+// accept it, and still refuse a misspelt one.
+TEST(CamerasJson, ProvenanceIsAllowedAtTheTopLevel) {
+  const std::string provenance = R"("provenance": {"tool": "opl_camera", "inputs": []})";
+  const std::string camera =
+      R"({"name": "c", "width_px": 640, "height_px": 480, "intrinsics": {"fx": 500, "fy": 500, "cx": 319.5, "cy": 239.5}})";
+  Result<std::vector<SceneCamera>> cameras = ParseCamerasJson(
+      R"({"format": "opl.cameras", "version": 1, "cameras": [)" + camera + "], " + provenance + "}", "c.json");
+  ASSERT_TRUE(cameras.ok()) << cameras.status().message();
+  EXPECT_EQ((*cameras)[0].intrinsics.fx_px, 500.0);
+  Result<std::vector<SceneCamera>> typo = ParseCamerasJson(
+      R"({"format": "opl.cameras", "version": 1, "cameras": [)" + camera + R"(], "provenence": {}})", "c.json");
+  ASSERT_FALSE(typo.ok());
+  EXPECT_NE(typo.status().message().find("c.json: provenence: unknown field"), std::string::npos);
+  Result<CalibrationBoard> grid = ParseBoardJson(
+      R"({"format": "opl.board", "version": 1, "type": "tag_grid", "cols": 2, "rows": 2, "tag_size_mm": 30,
+          "gap_mm": 7.5, )" + provenance + "}", "b.json");
+  EXPECT_TRUE(grid.ok()) << grid.status().message();
+  Result<CalibrationBoard> chess = ParseBoardJson(
+      R"({"format": "opl.board", "version": 1, "type": "chessboard", "inner_cols": 9, "inner_rows": 6,
+          "square_mm": 25, )" + provenance + "}", "b.json");
+  EXPECT_TRUE(chess.ok()) << chess.status().message();
+}
+
 }  // namespace
 }  // namespace opl

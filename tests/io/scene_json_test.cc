@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 
 #include "io/temp_dir.h"
+#include "opl/io/atomic_file.h"
 
 namespace opl {
 namespace {
@@ -189,7 +190,7 @@ TEST(SceneJson, MessagesNameTheFieldExactly) {
             "intrinsics, name, pose, width_px)");
   EXPECT_EQ(Message(Doc() .substr(0, Doc().size() - 1) + R"(, "images": 1})"),
             "s.json: images: unknown field (allowed here: artifact, cameras, description, format, "
-            "frame, image, module, seed, shots, spots, tags, version)");
+            "frame, image, module, provenance, seed, shots, spots, tags, version)");
   // Wrong type.
   EXPECT_EQ(Message(Doc("[" + kCamera + "]", R"({"size_mm": "abc", "placements": []})")),
             "s.json: tags.size_mm: expected a number, got \"abc\"");
@@ -242,6 +243,121 @@ TEST(SceneJson, ModuleFileIsReadRelativeToTheScene) {
   EXPECT_EQ(bad.status().code(), StatusCode::kIoError);
   EXPECT_EQ(bad.status().message(), missing + ": module: " + dir.File("nope.json") +
                                         ": cannot open: No such file or directory");
+}
+
+// Issue 18: a copied example failed to measure because its module file was
+// missing, though measuring never uses the module. Read for measuring, the
+// module is neither opened nor parsed; read for rendering it still is.
+TEST(SceneJson, MeasuringDoesNotNeedTheModuleFile) {
+  testing_support::TempDir dir;
+  Result<std::string> example = ReadFileToString(ExamplePath("scene_small.json"));
+  ASSERT_TRUE(example.ok());
+  const std::string copy = dir.Write("scene.json", *example);  // without scene_small_module.json
+  Result<Scene> render = ReadSceneJson(copy);
+  ASSERT_FALSE(render.ok());
+  EXPECT_EQ(render.status().message(), copy + ": module: " + dir.File("scene_small_module.json") +
+                                           ": cannot open: No such file or directory");
+  Result<Scene> measure = ReadSceneJson(copy, SceneUse::kMeasure);
+  ASSERT_TRUE(measure.ok()) << measure.status().message();
+  EXPECT_FALSE(measure->module.has_value());
+  Result<Scene> full = ReadSceneJson(ExamplePath("scene_small.json"));
+  ASSERT_TRUE(full.ok());
+  // Everything the front end uses is the same as the full read's.
+  ASSERT_EQ(measure->cameras.size(), full->cameras.size());
+  for (size_t k = 0; k < full->cameras.size(); ++k) {
+    EXPECT_EQ(measure->cameras[k].intrinsics.Packed(), full->cameras[k].intrinsics.Packed());
+  }
+  EXPECT_EQ(measure->tags.size_mm, 140.0);
+  EXPECT_EQ(measure->tags.tags.size(), 10u);
+  EXPECT_EQ(measure->shots.size(), 8u);
+  EXPECT_EQ(measure->shots[7].file, "cam3_B.png");
+  EXPECT_EQ(measure->shots[7].lasers, std::vector<std::string>{"B"});
+
+  // An inline design is not parsed either (its pattern file is missing, and
+  // a value out of range does not matter), but "module" must still be a path
+  // or a design object.
+  const std::string bad_module =
+      R"({"sources": [{"name": "A", "pattern": "file", "pattern_file": "gone.csv", "beams_per_side": 4}]})";
+  EXPECT_THAT(Message(Doc("[" + kCamera + "]", kTags, kShots, "", bad_module)), ::testing::HasSubstr("module."));
+  EXPECT_TRUE(ParseSceneJson(Doc("[" + kCamera + "]", kTags, kShots, "", bad_module), "s.json", "",
+                             SceneUse::kMeasure)
+                  .ok());
+  Result<Scene> number = ParseSceneJson(Doc("[" + kCamera + "]", kTags, kShots, "", "12"), "s.json", "",
+                                        SceneUse::kMeasure);
+  ASSERT_FALSE(number.ok());
+  EXPECT_EQ(number.status().message(),
+            "s.json: module: expected the path of a module design JSON or a design object, got 12");
+  // Lasers are not checked against a module that was not read.
+  EXPECT_TRUE(ParseSceneJson(Doc("[" + kCamera + "]", kTags, R"([{"camera": "cam0", "file": "a.png",
+                                 "lasers": ["Q"]}])"),
+                             "s.json", "", SceneUse::kMeasure)
+                  .ok());
+}
+
+TEST(SceneJson, MeasuringDoesNotNeedTagPlacements) {
+  const std::string tags = R"({"size_mm": 100})";
+  const std::string frame = R"(, "frame": {"origin_tag": 0, "axis_tag": 1, "plane_tag": 2})";
+  // Rendering needs them.
+  EXPECT_EQ(Message(Doc("[" + kCamera + "]", tags, kShots, frame)), "s.json: tags.placements: missing field");
+  Result<Scene> measure = ParseSceneJson(Doc("[" + kCamera + "]", tags, kShots, frame), "s.json", "",
+                                         SceneUse::kMeasure);
+  ASSERT_TRUE(measure.ok()) << measure.status().message();
+  EXPECT_TRUE(measure->tags.tags.empty());
+  EXPECT_EQ(measure->frame->plane_tag, 2);
+  // Unlisted tags: ids are still held to tag36h11's range.
+  Result<Scene> range = ParseSceneJson(
+      Doc("[" + kCamera + "]", tags, kShots, R"(, "frame": {"origin_tag": 0, "axis_tag": 1, "plane_tag": 600})"),
+      "s.json", "", SceneUse::kMeasure);
+  ASSERT_FALSE(range.ok());
+  EXPECT_EQ(range.status().message(), "s.json: frame.plane_tag: 600: must be in [0, 586] (tag36h11)");
+  // Listed tags must hold the frame's.
+  Result<Scene> listed = ParseSceneJson(Doc("[" + kCamera + "]", kTags, kShots, frame), "s.json", "",
+                                        SceneUse::kMeasure);
+  ASSERT_FALSE(listed.ok());
+  EXPECT_EQ(listed.status().message(), "s.json: frame.origin_tag: tag 0 is not among the scene's tags");
+  // Other fields present are still checked, and unknown fields refused.
+  Result<Scene> typo = ParseSceneJson(Doc("[" + kCamera + "]", tags, kShots, R"(, "imgae": {})"), "s.json", "",
+                                      SceneUse::kMeasure);
+  ASSERT_FALSE(typo.ok());
+  EXPECT_THAT(typo.status().message(), ::testing::HasSubstr("s.json: imgae: unknown field"));
+}
+
+TEST(SceneJson, ProvenanceIsAcceptedAndMustBeAnObject) {
+  EXPECT_EQ(Message(Doc("[" + kCamera + "]", kTags, kShots, R"(, "provenance": {"tool": "opl_scene"})")), "OK");
+  EXPECT_EQ(Message(Doc("[" + kCamera + "]", kTags, kShots, R"(, "provenance": "opl_scene")")),
+            "s.json: provenance: expected an object, got \"opl_scene\"");
+}
+
+TEST(SceneJson, MeasurementSceneRoundTrips) {
+  Result<Scene> full = ReadSceneJson(ExamplePath("scene_small.json"));
+  ASSERT_TRUE(full.ok());
+  const std::string text = FormatMeasurementSceneJson(
+      *full, "round trip", R"({"tool": "opl_scene", "inputs": []})");
+  const nlohmann::json doc = nlohmann::json::parse(text);
+  EXPECT_EQ(doc["description"], "round trip");
+  EXPECT_EQ(doc["provenance"]["tool"], "opl_scene");
+  EXPECT_FALSE(doc.contains("module"));
+  EXPECT_FALSE(doc["cameras"][0].contains("pose"));
+  EXPECT_EQ(doc["tags"]["placements"][9], nlohmann::json({{"id", 9}}));
+  Result<Scene> back = ParseSceneJson(text, "back.json", "", SceneUse::kMeasure);
+  ASSERT_TRUE(back.ok()) << back.status().message();
+  ASSERT_EQ(back->cameras.size(), 4u);
+  for (size_t k = 0; k < 4; ++k) {
+    EXPECT_EQ(back->cameras[k].name, full->cameras[k].name);
+    EXPECT_EQ(back->cameras[k].intrinsics.Packed(), full->cameras[k].intrinsics.Packed());  // bit-exact
+    EXPECT_FALSE(back->cameras[k].cam_from_scene.has_value());
+  }
+  EXPECT_EQ(back->tags.size_mm, full->tags.size_mm);
+  EXPECT_EQ(back->frame->axis_tag, 1);
+  EXPECT_EQ(back->artifact->length_mm, 800.0);
+  EXPECT_EQ(back->artifact->length_sigma_mm, 0.01);
+  ASSERT_EQ(back->shots.size(), full->shots.size());
+  for (size_t k = 0; k < back->shots.size(); ++k) {
+    EXPECT_EQ(back->shots[k].camera, full->shots[k].camera);
+    EXPECT_EQ(back->shots[k].file, full->shots[k].file);
+    EXPECT_EQ(back->shots[k].lasers, full->shots[k].lasers);
+    EXPECT_EQ(back->shots[k].slice, full->shots[k].slice);
+  }
 }
 
 }  // namespace

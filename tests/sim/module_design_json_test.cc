@@ -113,6 +113,14 @@ TEST(ModuleDesignJson, ParsesEveryFieldAndSurface) {
   EXPECT_EQ(std::get<PlaneListSurface>(planes->surface.shape()).planes[1].point_mm.x(), 1350.0);
 }
 
+TEST(ModuleDesignJson, ProvenanceIsAllowedAtTheTopLevel) {
+  // docs/formats.md, "Provenance": every JSON file may carry one.
+  const Result<ModuleDesign> d =
+      ParseModuleDesignJson(Doc(kTwo, kPlane, R"(, "provenance": {"tool": "x", "inputs": []})"), "d.json");
+  ASSERT_TRUE(d.ok()) << d.status().message();
+  EXPECT_EQ(d->sources.size(), 2u);
+}
+
 TEST(ModuleDesignJson, FilePatternRelativeToTheJsonFolder) {
   const std::string dir = TempDir() + "/design";
   std::filesystem::create_directories(dir + "/patterns");
@@ -292,7 +300,7 @@ TEST(ModuleDesignJson, InvalidJsonNonFiniteDuplicateKeysAndIo) {
   ExpectError(R"({"format": "opl.module_design", "version": 1, "x": )" + std::string(63, '[') +
                   std::string(63, ']') + "}",
               "design.json: x: unknown field (allowed here: description, format, "
-              "noise_frame_rotation_xyz_rad, sources, spot_noise_mm, surface, version)");  // 64 levels: parsed
+              "noise_frame_rotation_xyz_rad, provenance, sources, spot_noise_mm, surface, version)");  // 64 levels: parsed
   ExpectError("{\"format\": \"" + std::string(100, '[') + "\\\"\",\n\"a\": " +
                   std::string(64, '{') + "\"b\": 1" + std::string(64, '}') + "}",
               "design.json:2:69: invalid JSON: nested deeper than 64 levels");

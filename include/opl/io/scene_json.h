@@ -50,15 +50,42 @@
 
 namespace opl {
 
+// What a scene is read for. A scene JSON serves two uses (lab/scene.h), and a
+// field one use does not need must not stop it (issue 18: a copied example
+// failed to measure because its `module` file was missing):
+//  - kRender (`opl_simulate images`, the default): every field is read; the
+//    module (a path or an inline design) is read and checked, and the shots'
+//    lasers and slices are checked against it; `tags.placements` is required.
+//  - kMeasure (`opl_measure --images`, `opl_calibrate --images`, the image
+//    front end): the module is neither opened nor parsed (it must still be a
+//    path or an object; Scene::module stays empty) and `tags.placements` is
+//    optional (the front end finds the tags in the images; when placements
+//    are listed, the frame and artifact tags must be among them). Every other
+//    field present is read and checked as for rendering (a typo or a value out
+//    of range is still an error), and unknown fields are still refused.
+enum class SceneUse { kRender, kMeasure };
+
 // Reads and validates (Scene::Validate) a scene file; a module given as a
 // path is resolved against the folder of `path`.
-Result<Scene> ReadSceneJson(const std::string& path);
+Result<Scene> ReadSceneJson(const std::string& path, SceneUse use = SceneUse::kRender);
 
 // The same from text; `name_for_messages` starts every message, and relative
 // module and pattern paths are resolved against `base_dir` (the working
 // directory when empty).
 Result<Scene> ParseSceneJson(const std::string& text, const std::string& name_for_messages,
-                             const std::string& base_dir = "");
+                             const std::string& base_dir = "", SceneUse use = SceneUse::kRender);
+
+// A scene JSON for measuring (format "opl.scene", version 1) holding what the
+// image front end uses: `description` (when not empty), the cameras
+// (name, size, intrinsics, calibration record; no pose), `tags` (family,
+// size_mm, and the placements' ids when the scene lists tags, without poses),
+// `frame`, `artifact`, the shots, and `provenance_json` (a JSON object, e.g.
+// FormatProvenanceJson, io/provenance.h) as "provenance" when not empty.
+// The module, the looks, the seed and true poses are not written. Numbers are
+// written to full precision; ParseSceneJson(..., SceneUse::kMeasure) reads
+// the same scene back.
+std::string FormatMeasurementSceneJson(const Scene& scene, const std::string& description,
+                                       const std::string& provenance_json = "");
 
 // The scene truth JSON (format "opl.scene_truth", version 1; docs/formats.md,
 // "Scene truth JSON") of rendered shots: every tag's 3D centre and corners,

@@ -11,7 +11,9 @@
 //    `opl_measure --images`): it needs the cameras' intrinsics, the tag size
 //    and the frame tags, the artifact (for calibration) and the shots; the
 //    true poses and the module, when present, are ignored (the front end
-//    finds the poses from the images and the module from the spots).
+//    finds the poses from the images and the module from the spots; read
+//    with SceneUse::kMeasure, io/scene_json.h, the module is not even opened
+//    and the tag placements are optional).
 //
 // Frames and units: the scene frame is the simulation's world, millimetres,
 // Z up. Tags are posed by their TAG frame (as lab/planar_target_image.h,
@@ -190,7 +192,9 @@ struct Scene {
 
   // Checks the description as a measurement input: at least one camera,
   // unique names, valid intrinsics, unique tag ids within 0..586, frame and
-  // artifact tags present among the tags, looks in range, every shot naming
+  // artifact tags within 0..586 and, when the scene lists its tags (a scene
+  // for measuring may not: the front end finds them), among them, looks in
+  // range, every shot naming
   // a camera (and lasers of the module when a module is given), unique
   // files. The message names the field, e.g. "shots[3].camera: no camera
   // named 'cam9'".

@@ -159,11 +159,25 @@ void BindSimulate(py::module_& m) {
   m.def(
       "simulate_slices",
       [](const opl::ModuleDesign& d, const std::vector<opl::Surface>& screens, const SO& options) {
-        return SimulatedTuple(Unwrap(opl::SimulateSlices(d, screens, options)));
+        std::vector<opl::SimulatedSpot> simulated = Unwrap(opl::SimulateSlices(d, screens, options));
+        // A calibration slice is one grid on one screen (calibrate_module
+        // refuses a slice holding two sources): as opl_simulate slices,
+        // source i (design order) on screen k is slice i * K + k.
+        const int num_screens = static_cast<int>(screens.size());
+        for (opl::SimulatedSpot& s : simulated) {
+          int source_index = 0;
+          while (source_index < static_cast<int>(d.sources.size()) &&
+                 d.sources[static_cast<size_t>(source_index)].name != s.spot.source) {
+            ++source_index;
+          }
+          s.slice = source_index * num_screens + s.slice;
+        }
+        return SimulatedTuple(simulated);
       },
       py::arg("design"), py::arg("screens"), py::arg("options") = SO(),
-      "Simulates a calibration session: the spots of every source on every screen (Spots.slices "
-      "numbers the screens). Returns (spots, true_points, outlier mask).");
+      "Simulates a calibration session: the spots of every source on every screen. A slice is "
+      "one grid on one screen, so Spots.slices is i * K + k for source i (design order) on "
+      "screen k of K, ready for calibrate_module. Returns (spots, true_points, outlier mask).");
 }
 
 }  // namespace

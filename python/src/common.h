@@ -70,5 +70,6 @@ void BindSolve(py::module_& m);
 void BindSim(py::module_& m);
 void BindUncertainty(py::module_& m);
 void BindImages(py::module_& m);
+void BindPointCloud(py::module_& m);
 
 }  // namespace opl_python

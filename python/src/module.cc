@@ -111,4 +111,5 @@ PYBIND11_MODULE(opl, m) {
   op::BindSim(m);
   op::BindUncertainty(m);
   op::BindImages(m);
+  op::BindPointCloud(m);
 }

@@ -155,3 +155,43 @@ def test_design_json_errors_name_the_field(examples, tmp_path):
     with pytest.raises(opl.Error) as e:
         opl.ModuleDesign.read(str(bad))
     assert "design.json" in str(e.value) and "sources[1].full_angle_deg" in str(e.value)
+
+
+def test_point_cloud_read_write_round_trip(tmp_path):
+    rng = np.random.default_rng(5)
+    points = rng.normal(size=(50, 3)) * 1234.5
+    for name, binary in [("c.ply", True), ("a.ply", False), ("c.xyz", True), ("c.csv", True)]:
+        path = tmp_path / name
+        opl.write_point_cloud(points, str(path), binary=binary)
+        np.testing.assert_array_equal(opl.read_point_cloud(str(path)), points)  # exact: shortest text
+    assert b"format ascii" in (tmp_path / "a.ply").read_bytes()[:40]
+    # The written PLY is what scale_point_file streams: scaled, read back.
+    opl.scale_point_file(str(tmp_path / "c.ply"), str(tmp_path / "s.ply"), 2.0)
+    np.testing.assert_allclose(opl.read_point_cloud(str(tmp_path / "s.ply")), 2.0 * points, rtol=1e-15)
+
+
+def test_read_ply_with_other_properties_and_faces(tmp_path):
+    """A mesh as a scanner writes it (written with struct here, independently):
+    float x, y, z among other properties, a face element after the vertices."""
+    xyz = np.array([[1.5, -2.0, 3.25], [4.0, 5.5, -6.0], [0.0, 0.125, 8.0]], dtype=np.float32)
+    header = ("ply\nformat binary_big_endian 1.0\nelement vertex 3\nproperty uchar flag\n"
+              "property float x\nproperty float y\nproperty float z\nproperty list uchar int idx\n"
+              "element face 1\nproperty list uchar int vertex_indices\nend_header\n").encode()
+    body = b"".join(struct.pack(">Bfff", 7, *p) + struct.pack(">Bi", 1, i) for i, p in enumerate(xyz))
+    body += struct.pack(">Biii", 3, 0, 1, 2)
+    path = tmp_path / "mesh.ply"
+    path.write_bytes(header + body)
+    np.testing.assert_array_equal(opl.read_point_cloud(str(path)), xyz.astype(float))
+    path.write_bytes(header + body[:20])
+    with pytest.raises(opl.ParseError, match="mesh.ply.*cut off"):
+        opl.read_point_cloud(str(path))
+    ascii_ply = tmp_path / "ascii.ply"
+    ascii_ply.write_text("ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
+                         "property float z\nproperty uchar red\nend_header\n1 2 3 255\n4 5 abc 0\n")
+    with pytest.raises(opl.ParseError) as e:
+        opl.read_point_cloud(str(ascii_ply))
+    assert "ascii.ply" in str(e.value) and "'z'" in str(e.value)
+    xyz_file = tmp_path / "bad.xyz"
+    xyz_file.write_text("1 2 3\n# comment\n4 x 6\n")
+    with pytest.raises(opl.ParseError, match=r"bad.xyz:3: field 'y'"):
+        opl.read_point_cloud(str(xyz_file))

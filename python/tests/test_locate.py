@@ -138,3 +138,16 @@ def test_compute_scale_factor_closed_form(prototype_design):
     assert result.scale_factor == pytest.approx(55.0 / 50.0, rel=1e-12)
     # u(L_photo) = sqrt(0.01 + 0.01) along the baseline; u(s) = s u(L) / L.
     assert result.u_scale_factor == pytest.approx(55.0 / 50.0 * np.sqrt(0.02) / 50.0, rel=1e-9)
+
+
+def test_rigid3_angle_convention():
+    """R = Rx(a) Ry(b) Rz(c) as docs/method states, against numpy."""
+    pose = opl.Rigid3.from_xyz_angles(np.array([0.3, -0.2, 0.7]), np.array([1.0, 2.0, 3.0]))
+    np.testing.assert_allclose(pose.rotation, rotation_xyz(0.3, -0.2, 0.7), atol=1e-15)
+    np.testing.assert_allclose(pose.xyz_angles_rad, [0.3, -0.2, 0.7], atol=1e-12)
+    np.testing.assert_allclose((pose * pose.inverse()).rotation, np.eye(3), atol=1e-15)
+    w, x, y, z = pose.quaternion_wxyz
+    again = opl.Rigid3.from_quaternion(np.array([w, x, y, z]), pose.translation)
+    np.testing.assert_allclose(again.rotation, pose.rotation, atol=1e-15)
+    with pytest.raises(opl.InvalidArgumentError, match="Rigid3: rotation: not a rotation matrix"):
+        opl.Rigid3(np.diag([1.0, 1.0, -1.0]), np.zeros(3))

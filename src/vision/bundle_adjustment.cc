@@ -488,7 +488,17 @@ Result<BundleResult> BundleAdjust(const BundleData& data, const BundleOptions& o
     Eigen::MatrixXd Sg = Eigen::MatrixXd::Zero(nc, nc);
     Eigen::MatrixXd Lg = Eigen::MatrixXd::Zero(nc, nc);  // Sg = Lg Lg^T
     if (failure.empty() && nc > 0) {
-      const Eigen::MatrixXd Ssym = 0.5 * (S + S.transpose());
+      // Jacobi scaling first: S's columns mix radians and lengths in the
+      // scene's unit, so its raw eigenvalues span the square of that unit's
+      // ratio to a radian (a COLMAP model in units of ~0.2 m, or a scene in
+      // mm, put genuine directions below the 1e-10 threshold: "26 near-zero
+      // eigenvalues, 7 expected"). Ssc = D^-1 S D^-1 with D = sqrt(diag S) is
+      // unit-free; D^-1 Ssc^+ D^-1 is a generalised inverse of S, which is
+      // all the datum's gauge-invariant covariances need.
+      Eigen::VectorXd dinv(nc);
+      for (int e = 0; e < nc; ++e) dinv(e) = S(e, e) > 0.0 ? 1.0 / std::sqrt(S(e, e)) : 1.0;
+      const Eigen::MatrixXd Ssym =
+          dinv.asDiagonal() * (0.5 * (S + S.transpose())) * dinv.asDiagonal();
       Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(Ssym);
       const Eigen::VectorXd& ev = es.eigenvalues();
       const double top = ev(nc - 1);
@@ -509,8 +519,9 @@ Result<BundleResult> BundleAdjust(const BundleData& data, const BundleOptions& o
         } else {
           Eigen::VectorXd inv = Eigen::VectorXd::Zero(nc);
           for (int e = gauge_dim; e < nc; ++e) inv(e) = 1.0 / ev(e);
-          Sg = es.eigenvectors() * inv.asDiagonal() * es.eigenvectors().transpose();
-          Lg = es.eigenvectors() * inv.cwiseSqrt().asDiagonal();
+          const Eigen::MatrixXd scaled_vectors = dinv.asDiagonal() * es.eigenvectors();
+          Sg = scaled_vectors * inv.asDiagonal() * scaled_vectors.transpose();
+          Lg = scaled_vectors * inv.cwiseSqrt().asDiagonal();
         }
       }
     }

@@ -8,6 +8,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include "support/provenance_strip.h"
 #include "apps/cli_test_util.h"
 #include <nlohmann/json.hpp>
 
@@ -20,7 +21,10 @@ using cli_test::Calibrate;
 using cli_test::RunResult;
 using cli_test::Simulate;
 using ::testing::HasSubstr;
-using testing_support::ReadAll;
+// What the tools wrote, compared without the provenance they stamp in
+// (its time and command line differ by run; tests/apps/provenance_cli_test.cc
+// checks it).
+std::string ReadAll(const std::string& path) { return testing_support::ReadOutput(path); }
 
 class CalibrateCli : public ::testing::Test {
  protected:

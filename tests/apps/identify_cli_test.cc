@@ -33,6 +33,7 @@ std::vector<std::vector<std::string>> ReadCsv(const std::string& path) {
   std::ifstream in(path);
   std::vector<std::vector<std::string>> rows;
   for (std::string line; std::getline(in, line);) {
+    if (line.rfind('#', 0) == 0) continue;  // OPL's provenance lines
     std::vector<std::string> fields;
     std::stringstream s(line);
     for (std::string f; std::getline(s, f, ',');) fields.push_back(f);

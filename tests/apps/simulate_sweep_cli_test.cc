@@ -25,7 +25,9 @@ const std::string kDesign = std::string(OPL_EXAMPLES_DIR) + "/staggered_design.j
 std::vector<std::string> Lines(const std::string& path) {
   std::ifstream in(path);
   std::vector<std::string> lines;
-  for (std::string line; std::getline(in, line);) lines.push_back(line);
+  for (std::string line; std::getline(in, line);) {
+    if (line.rfind('#', 0) != 0) lines.push_back(line);  // '#': OPL's provenance lines
+  }
   return lines;
 }
 

@@ -173,6 +173,9 @@ inline Result<TwoStepResult> RunTwoStep(const ProjectorLabCase& c, double unscal
   options.compute_point_covariances = true;
   Result<BundleResult> adjusted = BundleAdjust(b, options);
   if (!adjusted.ok()) return adjusted.status();
+  if (adjusted->point_covariances.empty()) {
+    return Status::NoSolution("two-step bundle adjustment: covariances " + adjusted->covariance_method);
+  }
   FrontEndResult fe;
   std::map<std::string, int> group_of;
   for (const ProjectorSpot& s : c.start.spots) {

@@ -155,5 +155,63 @@ TEST(ProjectorAdjust, UncertaintyOfScaleMatchesItsSpreadAndTheTwoStepPath) {
   EXPECT_LT(mahalanobis, 1.15);
 }
 
+
+// The calibration as a prior. With the separation's u(L) > 0 the module's
+// length factor lambda is free under it; the photographs say nothing about
+// it (the scene's scale and the module's trade exactly), so its posterior
+// u equals the prior's u(L) / L and u(s)^2 grows by (s u(L) / L)^2. With
+// beam and source-rotation covariances those blocks are free under their
+// priors: noise-free observations leave them at the calibration and s exact,
+// and u(s) can only grow.
+TEST(ProjectorAdjust, CalibrationPriorEntersTheUncertainty) {
+  const Scene scene = SmallScene();
+  Result<ModuleCalibration> exact = ExactCalibration(*scene.module);
+  ASSERT_TRUE(exact.ok());
+  const test::ProjectorLabCase c = test::MakeProjectorLabCase(scene, *exact, 0.0, 0.0, 2);
+  const std::array<Eigen::Vector3d, 3> abc = DatumPoints(c.truth.bundle, c.datum_sets);
+  ProjectorAdjustmentOptions options;
+  options.datum_point_sets = c.datum_sets;
+  options.unscaled_datum_length = (abc[1] - abc[0]).norm();
+  // The observations' covariances are nominal (0.1 px): u(s) is what they imply.
+  Result<ProjectorAdjustmentResult> held = ProjectorAdjust(c.start, options);
+  ASSERT_TRUE(held.ok()) << held.status().ToString();
+  ASSERT_GT(held->u_scale_factor, 0.0);
+
+  ProjectorAdjustmentData with_prior = c.start;
+  ASSERT_EQ(with_prior.calibration.separations.size(), 1u);
+  Separation& sep = with_prior.calibration.separations[0];
+  sep.u_length_mm = 0.02;
+  const double rel = sep.u_length_mm / sep.length_mm;
+  Result<ProjectorAdjustmentResult> free_length = ProjectorAdjust(with_prior, options);
+  ASSERT_TRUE(free_length.ok()) << free_length.status().ToString();
+  EXPECT_TRUE(free_length->free_module_length);
+  EXPECT_NEAR(free_length->module_length_factor, 1.0, 1e-9);
+  EXPECT_NEAR(free_length->u_module_length_factor / rel, 1.0, 1e-6);
+  const double expected = std::hypot(held->u_scale_factor, free_length->scale_factor * rel);
+  std::cout << "u(s): held " << held->u_scale_factor << ", with u(L)/L = " << rel << ": "
+            << free_length->u_scale_factor << " (expected " << expected << ")\n";
+  EXPECT_NEAR(free_length->u_scale_factor / expected, 1.0, 1e-6);
+
+  // Beams and source rotations under priors of 50 urad.
+  for (SourceCalibration& src : with_prior.calibration.sources) {
+    std::vector<Beam> beams = src.pattern.beams();
+    for (Beam& b : beams) b.cov_azel_rad2 = Eigen::Matrix2d::Identity() * 2.5e-9;
+    Result<BeamPattern> pattern = BeamPattern::Create(src.pattern.beams_per_side(), beams);
+    ASSERT_TRUE(pattern.ok());
+    src.pattern = *pattern;
+    SourceCalibrationQuality q;
+    q.rotation_xyz_cov_rad2 = Eigen::Matrix3d::Identity() * 2.5e-9;
+    src.quality = q;
+  }
+  Result<ProjectorAdjustmentResult> all = ProjectorAdjust(with_prior, options);
+  ASSERT_TRUE(all.ok()) << all.status().ToString();
+  std::cout << all->Report();
+  EXPECT_EQ(all->free_beams, static_cast<int>(c.truth.spots.size()));
+  EXPECT_EQ(all->free_source_rotations, 2);
+  EXPECT_LT(std::abs(all->scale_factor - 1.0), 1e-9);
+  EXPECT_GT(all->u_scale_factor, free_length->u_scale_factor);
+  ASSERT_FALSE(all->point_covariances_mm2.empty()) << all->covariance_method;
+}
+
 }  // namespace
 }  // namespace opl

@@ -40,8 +40,10 @@
 //
 // Covariances (first order, the observations' covariances taken as true):
 // H = J^T J at the solution, the depths eliminated (S = A - B D^-1 B^T, D
-// diagonal), S's pseudo-inverse with its six gauge directions dropped (any
-// generalised inverse gives the same covariance of a gauge-free quantity),
+// diagonal), S scaled to unit diagonal (P S P, P = diag(S)^-1/2) and its
+// pseudo-inverse taken with its six gauge directions dropped: G = P (P S
+// P)^+ P is a generalised inverse of S, and any generalised inverse gives
+// the same covariance of a gauge-free quantity,
 // propagated to the datum frame through F(X) = R(A, B, C) (X - A) with A, B,
 // C's errors included.
 //

@@ -34,9 +34,13 @@ struct ProjectorLabCase {
   std::array<std::vector<int>, 3> datum_sets;
 };
 
+// `module_moves`: further placements of the module, each the scene's module
+// moved by new_from_old (its surface too: the spots land where the moved
+// module would put them on the moved surface; the tags stay).
 inline ProjectorLabCase MakeProjectorLabCase(const Scene& scene, const ModuleCalibration& calibration,
                                              double tag_sigma_px, double spot_sigma_px,
-                                             uint64_t seed) {
+                                             uint64_t seed,
+                                             const std::vector<Rigid3d>& module_moves = {}) {
   ProjectorLabCase c;
   Result<SceneRenderer> renderer = SceneRenderer::Create(scene);
   EXPECT_TRUE(renderer.ok()) << renderer.status().ToString();
@@ -96,31 +100,40 @@ inline ProjectorLabCase MakeProjectorLabCase(const Scene& scene, const ModuleCal
     d.bundle.observations.insert(d.bundle.observations.end(), obs.begin(), obs.end());
   }
   // The module: calibration frame = design scene frame (ExactCalibration).
-  ProjectorPlacement placement;
-  placement.name = "placement 1";
-  placement.scene_from_module = Rigid3d(Eigen::Quaterniond::Identity(), d.ModuleOriginInCalibration());
-  d.placements.push_back(placement);
-  for (const SceneSpotTruth& s : renderer->spots()) {
-    if (s.slice != 0) continue;
-    const SourceCalibration* src = calibration.FindSource(s.source);
-    const Eigen::Vector3d origin = src->calibration_from_source.translation;
-    ProjectorSpot spot;
-    spot.placement = 0;
-    spot.source = s.source;
-    spot.beam_id = s.beam;
-    spot.depth_mm = (s.point_in_scene - origin).norm();
-    for (size_t i = 0; i < d.bundle.cameras.size(); ++i) {
-      const Eigen::Vector3d centre = d.bundle.CameraAt(static_cast<int>(i)).CenterInScene();
-      if (!(s.normal_in_scene.dot(centre - s.point_in_scene) > 0.0)) continue;
-      ProjectorSpotObservation o;
-      o.camera = static_cast<int>(i);
-      if (!observe(i, s.point_in_scene, spot_sigma_px, &o.pixel_px)) continue;
-      o.covariance_px2 = Eigen::Matrix2d::Identity() * (spot_sigma_px > 0.0 ? spot_sigma_px * spot_sigma_px : 0.01);
-      spot.observations.push_back(o);
+  std::vector<Rigid3d> moves = {Rigid3d()};
+  moves.insert(moves.end(), module_moves.begin(), module_moves.end());
+  for (size_t m = 0; m < moves.size(); ++m) {
+    ProjectorPlacement placement;
+    placement.name = "placement " + std::to_string(m + 1);
+    placement.scene_from_module =
+        moves[m] * Rigid3d(Eigen::Quaterniond::Identity(), d.ModuleOriginInCalibration());
+    d.placements.push_back(placement);
+    Scene moved = scene;
+    moved.module = scene.module->Transformed(moves[m]);
+    Result<SceneRenderer> spots_of = SceneRenderer::Create(moved);
+    EXPECT_TRUE(spots_of.ok()) << spots_of.status().ToString();
+    for (const SceneSpotTruth& s : spots_of->spots()) {
+      if (s.slice != 0) continue;
+      const SourceCalibration* src = calibration.FindSource(s.source);
+      const Eigen::Vector3d origin = moves[m] * src->calibration_from_source.translation;
+      ProjectorSpot spot;
+      spot.placement = static_cast<int>(m);
+      spot.source = s.source;
+      spot.beam_id = s.beam;
+      spot.depth_mm = (s.point_in_scene - origin).norm();
+      for (size_t i = 0; i < d.bundle.cameras.size(); ++i) {
+        const Eigen::Vector3d centre = d.bundle.CameraAt(static_cast<int>(i)).CenterInScene();
+        if (!(s.normal_in_scene.dot(centre - s.point_in_scene) > 0.0)) continue;
+        ProjectorSpotObservation o;
+        o.camera = static_cast<int>(i);
+        if (!observe(i, s.point_in_scene, spot_sigma_px, &o.pixel_px)) continue;
+        o.covariance_px2 = Eigen::Matrix2d::Identity() * (spot_sigma_px > 0.0 ? spot_sigma_px * spot_sigma_px : 0.01);
+        spot.observations.push_back(o);
+      }
+      if (spot.observations.size() < 2) continue;
+      d.spots.push_back(spot);
+      c.spot_truth_mm.push_back(s.point_in_scene);
     }
-    if (spot.observations.size() < 2) continue;
-    d.spots.push_back(spot);
-    c.spot_truth_mm.push_back(s.point_in_scene);
   }
   // The start: every position off by a few mm and turned a little, the
   // module moved, the depths off.

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <map>
 #include <memory>
+#include <tuple>
 
 #include <ceres/ceres.h>
 #include <ceres/manifold.h>
@@ -95,8 +96,16 @@ Status ValidateData(const ProjectorAdjustmentData& data, const ProjectorAdjustme
                                      "].scene_from_module is not finite");
     }
   }
+  std::map<std::tuple<int, std::string, int>, size_t> first_of_beam;
   for (size_t k = 0; k < data.spots.size(); ++k) {
     const ProjectorSpot& s = data.spots[k];
+    const auto [earlier, inserted] = first_of_beam.insert({{s.placement, s.source, s.beam_id}, k});
+    if (!inserted) {
+      return Status::InvalidArgument(SpotPrefix(k) + ": source '" + s.source + "' beam " +
+                                     std::to_string(s.beam_id) + " at placement " +
+                                     std::to_string(s.placement) + " again (spots[" +
+                                     std::to_string(earlier->second) + "] has it)");
+    }
     if (s.placement < 0 || s.placement >= static_cast<int>(data.placements.size())) {
       return Status::InvalidArgument(SpotPrefix(k) + ".placement " + std::to_string(s.placement) +
                                      " is not a placement index");

@@ -258,5 +258,38 @@ TEST(ProjectorAdjust, TwoPlacementsInOneAdjustment) {
   ASSERT_EQ(r->module_origin_covariances_mm2.size(), 2u);
 }
 
+
+TEST(ProjectorAdjust, BadSpotsNameTheSpotAndTheField) {
+  const Scene scene = SmallScene();
+  Result<ModuleCalibration> cal = ExactCalibration(*scene.module);
+  ASSERT_TRUE(cal.ok());
+  const test::ProjectorLabCase c = test::MakeProjectorLabCase(scene, *cal, 0.0, 0.0, 4);
+  ProjectorAdjustmentOptions options;
+  options.datum_point_sets = c.datum_sets;
+  auto message = [&](const ProjectorAdjustmentData& d) {
+    Result<ProjectorAdjustmentResult> r = ProjectorAdjust(d, options);
+    return r.ok() ? std::string("ok") : r.status().message();
+  };
+  ProjectorAdjustmentData d = c.start;
+  d.spots.push_back(d.spots[3]);
+  EXPECT_EQ(message(d), "projector adjustment: spots[" + std::to_string(d.spots.size() - 1) +
+                            "]: source '" + d.spots[3].source + "' beam " +
+                            std::to_string(d.spots[3].beam_id) + " at placement 0 again (spots[3] has it)");
+  d = c.start;
+  d.spots[5].beam_id = 999;
+  EXPECT_EQ(message(d), "projector adjustment: spots[5].beam_id 999 is not a beam of source '" +
+                            d.spots[5].source + "'");
+  d = c.start;
+  d.spots[2].observations[0].camera = 17;
+  EXPECT_EQ(message(d), "projector adjustment: spots[2].observations[0].camera 17 is not a camera index");
+  d = c.start;
+  d.spots[1].placement = 1;
+  EXPECT_EQ(message(d), "projector adjustment: spots[1].placement 1 is not a placement index");
+  d = c.start;
+  d.bundle.intrinsics[0].constant = false;
+  EXPECT_EQ(message(d), "projector adjustment: bundle.intrinsics[0].constant is false: the intrinsics "
+                        "are held (calibrated cameras)");
+}
+
 }  // namespace
 }  // namespace opl

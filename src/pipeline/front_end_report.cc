@@ -176,6 +176,13 @@ Status FrontEndRun::MoveToSceneFrame() {
     const size_t s = static_cast<size_t>(ob.point - first_spot_point);
     result.spots[s].views.emplace_back(spot_refs[k].image, spot_refs[k].spot);
   }
+  result.adjustment = adjusted->data;
+  for (BundleCamera& cam : result.adjustment.cameras) {
+    cam.cam_from_scene = CamFromNewScene(cam.cam_from_scene, *frame, 1.0);
+  }
+  for (BundlePoint& p : result.adjustment.points) p.point_in_scene = *frame * p.point_in_scene;
+  result.first_spot_point = first_spot_point;
+  result.tag_first_point = first_corner_point;
   result.cameras.resize(static_cast<size_t>(num_images));
   for (int i = 0; i < num_images; ++i) {
     const int camera = camera_of_image[static_cast<size_t>(i)];

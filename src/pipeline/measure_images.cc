@@ -11,6 +11,7 @@
 
 #include "opl/core/format.h"
 #include "opl/core/message_text.h"
+#include "opl/pipeline/projector_measure.h"
 
 namespace opl {
 
@@ -33,6 +34,7 @@ std::string ImageMeasureReport::ToText() const {
         << " components propagated)\n";
   }
   for (const std::string& c : metadata_conflicts) out << "warning: " << c << "\n";
+  if (projector) out << "\nthe scale inside the adjustment:\n" << projector->Report();
   return out.str();
 }
 
@@ -88,6 +90,15 @@ std::string ImageMeasureReport::ToJson() const {
   doc["warnings"] = front_end.warnings;
   doc["measure"] = ordered_json::parse(measure.ToJson());
   doc["metadata_conflicts"] = metadata_conflicts;
+  if (projector) {
+    doc["projector"] = {{"scale_factor", projector->scale_factor},
+                        {"u_scale_factor", projector->u_scale_factor},
+                        {"datum_length_mm", projector->datum_length_mm},
+                        {"u_datum_length_mm", projector->u_datum_length_mm},
+                        {"variance_factor", projector->variance_factor},
+                        {"rms_tag_px", projector->rms_tag_px},
+                        {"rms_spot_px", projector->rms_spot_px}};
+  }
   return doc.dump(2) + "\n";
 }
 
@@ -266,6 +277,14 @@ Result<ImageMeasureReport> MeasureScaleFromFrontEnd(FrontEndResult front_end,
     }
   }
   report.measure = std::move(*measure);
+  if (options.front_end.scale_in_adjustment) {
+    ProjectorAdjustmentOptions projector_options;
+    projector_options.num_threads = std::max(1, options.front_end.num_threads);
+    Result<ProjectorAdjustmentResult> projector =
+        AdjustScaleWithProjector(report, calibration, projector_options);
+    if (!projector.ok()) return projector.status();
+    report.projector = std::move(*projector);
+  }
   return report;
 }
 

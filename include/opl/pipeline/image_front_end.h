@@ -171,6 +171,13 @@ struct FrontEndOptions {
   // (median; else the camera moved between the shots and the lit image is
   // used alone, with a note). > 0.
   bool use_dark_frames = true;
+  // The scale inside the adjustment (vision/projector_adjustment.h; docs/
+  // multiview.md, "The projector model"): after the two-step measurement
+  // (MeasureScaleFromImages / MeasureScaleFromFrontEnd), the laser module
+  // enters the bundle adjustment as a calibrated projector, started from
+  // the two-step solution, and the adjusted scene comes out in mm with s and
+  // u(s) (ImageMeasureReport::projector). RunImageFrontEnd itself ignores it.
+  bool scale_in_adjustment = false;
   double max_dark_frame_shift_px = 1.0;
   // Worker threads for the detection (and for CalibrateFromImages' re-solves
   // of the shared errors), >= 0; 0 = every core.
@@ -259,6 +266,15 @@ struct FrontEndResult {
   // that they, and u(s), follow the observed scatter.
   double spot_point_covariance_scale = 1.0;
   std::string bundle_report;         // BundleResult::Report() of the final adjustment
+  // The final adjustment's data moved to the scene frame (unscaled): its
+  // cameras (BundleData::cameras, one per placed camera pose), its points
+  // (tag corners first, then spot k at first_spot_point + k) and
+  // observations (tag corners, then spots), and each tag's corner 0 (by
+  // id). For the projector adjustment (scale_in_adjustment); empty on the
+  // COLMAP path.
+  BundleData adjustment;
+  int first_spot_point = 0;
+  std::map<int, int> tag_first_point;
   std::vector<std::string> warnings;
 
   // Per image one line (file, camera, tags, spots detected/matched, RMS),

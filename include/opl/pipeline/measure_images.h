@@ -30,6 +30,7 @@
 // and MeasureScale; NoSolution when no spot of any group is identified.
 #pragma once
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -39,6 +40,7 @@
 #include "opl/model/spot.h"
 #include "opl/pipeline/image_front_end.h"
 #include "opl/pipeline/measure.h"
+#include "opl/vision/projector_adjustment.h"
 
 namespace opl {
 
@@ -78,6 +80,10 @@ struct ImageMeasureReport {
   double u_scale_factor_own = 0.0;
   double u_scale_factor_shared = 0.0;
   int shared_components = 0;  // m
+  // With FrontEndOptions::scale_in_adjustment: the projector adjustment
+  // started from this two-step solution (pipeline/projector_measure.h):
+  // cameras and tags in mm, s and u(s) of the scale inside the adjustment.
+  std::optional<ProjectorAdjustmentResult> projector;
 
   // The front end's report, each group's identification, the measurement,
   // then the conflicts.
@@ -87,7 +93,10 @@ struct ImageMeasureReport {
   //  "variance_factor", "spot_variance_factor", "spot_extra_sigma_px",
   //  "tag_variance_factor", "tag_extra_sigma_px", "u_scale_factor_own",
   //  "u_scale_factor_shared", "warnings",
-  //  "measure": <the measure report JSON>, "metadata_conflicts": [...]}.
+  //  "measure": <the measure report JSON>, "metadata_conflicts": [...],
+//  and with the projector adjustment "projector": {"scale_factor",
+//  "u_scale_factor", "datum_length_mm", "u_datum_length_mm",
+//  "variance_factor", "rms_tag_px", "rms_spot_px"}}.
   std::string ToJson() const;
 };
 
@@ -98,7 +107,8 @@ Result<ImageMeasureReport> MeasureScaleFromImages(
 
 // The steps after the front end (identification, location, s), on a front
 // end's result however it was made (RunImageFrontEnd, or the COLMAP path of
-// pipeline/colmap_measure.h). options.front_end is not used.
+// pipeline/colmap_measure.h). Of options.front_end only scale_in_adjustment
+// is used.
 Result<ImageMeasureReport> MeasureScaleFromFrontEnd(
     FrontEndResult front_end, const ModuleCalibration& calibration,
     const ImageMeasureOptions& options = ImageMeasureOptions());

@@ -45,6 +45,7 @@ struct Args {
   std::string colmap_out_dir;
   int threads = 0;
   bool one_pose_per_camera = false;
+  bool scale_in_adjustment = false;
   opl::cli::ImageRunArgs image_run;  // --spot-channel, --force, --verbose
 };
 
@@ -154,6 +155,7 @@ int RunImages(const Args& args, int argc, char** argv) {
   ImageMeasureOptions options;
   options.front_end.num_threads = args.threads;
   options.front_end.one_pose_per_camera = args.one_pose_per_camera;
+  options.front_end.scale_in_adjustment = args.scale_in_adjustment;
   cli::ApplyImageRunOptions(args.image_run, &options.front_end);
   cli::ProgressBar bar("images", cli::StderrIsTerminal());
   options.front_end.progress = bar.StageCallback("detect");
@@ -295,6 +297,13 @@ int Run(int argc, char** argv) {
                "With --images: the shots of one camera share one pose (cameras on tripods,\n"
                "untouched for the whole session); refused when a camera's shots place it\n"
                "more than 5 mm or 2 mrad apart (docs/images.md)")
+      ->needs(images);
+  app.add_flag("--scale-in-adjustment", args.scale_in_adjustment,
+               "With --images: after the two-step measurement, adjust again with the module as\n"
+               "a calibrated projector (each spot a depth along its calibrated beam, the\n"
+               "calibration a prior): the scene comes out in mm and s with its u(s) from that\n"
+               "adjustment, in the report's 'projector' part (docs/multiview.md, 'The\n"
+               "projector model'). Not with --colmap")
       ->needs(images);
   CLI::Option* colmap_option =
       app.add_option("--colmap", args.colmap_dir,

@@ -22,6 +22,17 @@ std::string LowerExtension(const std::string& path) {
   return ext;
 }
 
+// `text` ("\n" line breaks) with "\r\n" ones when `crlf`.
+std::string WithLineBreaks(const std::string& text, bool crlf) {
+  if (!crlf) return text;
+  std::string converted;
+  for (char c : text) {
+    if (c == '\n') converted += '\r';
+    converted += c;
+  }
+  return converted;
+}
+
 bool IsBlank(char c) { return c == ' ' || c == '\t' || c == '\n' || c == '\r'; }
 
 Result<std::string> StampJson(const std::string& path, const std::string& contents,
@@ -58,15 +69,7 @@ Result<std::string> StampHashComments(const std::string& contents, const Provena
   const std::string bom = "\xEF\xBB\xBF";
   const bool has_bom = contents.compare(0, bom.size(), bom) == 0;
   const bool crlf = contents.find("\r\n") != std::string::npos;
-  std::string block = FormatProvenanceComment(provenance, "# ");
-  if (crlf) {
-    std::string converted;
-    for (char c : block) {
-      if (c == '\n') converted += '\r';
-      converted += c;
-    }
-    block = converted;
-  }
+  const std::string block = WithLineBreaks(FormatProvenanceComment(provenance, "# "), crlf);
   if (has_bom) return bom + block + contents.substr(bom.size());
   return block + contents;
 }
@@ -79,15 +82,8 @@ Result<std::string> StampPly(const std::string& path, const std::string& content
     if (eol == std::string::npos) break;
     if (contents.compare(line, 7, "format ") == 0) {
       const bool crlf = eol > line && contents[eol - 1] == '\r';
-      std::string block = FormatProvenanceComment(provenance, "comment ");
-      if (crlf) {
-        std::string converted;
-        for (char c : block) {
-          if (c == '\n') converted += '\r';
-          converted += c;
-        }
-        block = converted;
-      }
+      const std::string block =
+          WithLineBreaks(FormatProvenanceComment(provenance, "comment "), crlf);
       return contents.substr(0, eol + 1) + block + contents.substr(eol + 1);
     }
     if (contents.compare(line, 10, "end_header") == 0) break;

@@ -145,18 +145,28 @@ Status FrontEndRun::PlaceCamerasFromColmap(const ColmapModel& model, double tie_
     }
     if (cameras.size() < 2) continue;
     // Two images from one camera position (a camera that shot both grids
-    // from where it stood) do not fix the point's depth: the rays must meet
-    // at min_tag_triangulation_angle_deg or more, as for the tags.
+    // from where it stood) do not fix the point's depth. The scene says
+    // which shots share a camera, and so a position: COLMAP poses each image
+    // on its own, and two images of one camera can come out a little apart
+    // in the model, enough for a near point's rays to meet at a degree or
+    // more there while the adjustment brings the two images together and
+    // leaves the depth free (a 3x3 block with a condition number of 6e13,
+    // an indefinite reduced camera matrix). So the rays must meet at
+    // min_tag_triangulation_angle_deg or more between images of two
+    // different scene cameras, as for the tags.
     double max_angle_deg = 0.0;
-    for (int i : cameras) {
-      for (int j : cameras) {
-        if (j <= i) continue;
+    for (size_t a = 0; a < observations.size(); ++a) {
+      for (size_t b = a + 1; b < observations.size(); ++b) {
+        if (scene.shots[static_cast<size_t>(images[a])].camera ==
+            scene.shots[static_cast<size_t>(images[b])].camera) {
+          continue;
+        }
         const Eigen::Vector3d ri =
             c.point->xyz_in_world -
-            bundle.cameras[static_cast<size_t>(i)].cam_from_scene.Inverse().translation;
+            bundle.cameras[static_cast<size_t>(observations[a].camera)].cam_from_scene.Inverse().translation;
         const Eigen::Vector3d rj =
             c.point->xyz_in_world -
-            bundle.cameras[static_cast<size_t>(j)].cam_from_scene.Inverse().translation;
+            bundle.cameras[static_cast<size_t>(observations[b].camera)].cam_from_scene.Inverse().translation;
         const double angle =
             std::atan2(ri.cross(rj).norm(), ri.dot(rj)) * 180.0 / kPi;
         max_angle_deg = std::max(max_angle_deg, angle);
@@ -220,8 +230,8 @@ Status FrontEndRun::PlaceCamerasFromColmap(const ColmapModel& model, double tie_
   if (dropped_narrow > 0) {
     result.warnings.push_back(
         "COLMAP model: " + std::to_string(dropped_narrow) +
-        " points not used as tie points: their rays meet at less than " +
-        FormatNumber(options.min_tag_triangulation_angle_deg) + " deg (seen from one position)");
+        " points not used as tie points: seen from one camera position, or their rays meet at "
+        "less than " + FormatNumber(options.min_tag_triangulation_angle_deg) + " deg");
   }
   if (dropped_behind > 0) {
     result.warnings.push_back("COLMAP model: " + std::to_string(dropped_behind) +

@@ -481,6 +481,20 @@ Result<BundleResult> BundleAdjust(const BundleData& data, const BundleOptions& o
         failure = "unavailable: point " + std::to_string(j) + " is not determined (singular 3x3 block)";
         break;
       }
+      // A block that factors but is nearly singular (rays that nearly
+      // coincide: a point seen only from one position) has an inverse of
+      // no digits, and the Schur complement below loses its positive
+      // semi-definiteness. Its three coordinates share one unit, so the
+      // condition number is meaningful.
+      const Eigen::Vector3d d_eigen = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(
+          D[j], Eigen::EigenvaluesOnly).eigenvalues();
+      if (!(d_eigen(0) > 1e-12 * d_eigen(2))) {
+        failure = "unavailable: point " + std::to_string(j) +
+                  " is not determined (its 3x3 block has condition number " +
+                  FormatNumber(d_eigen(2) / std::max(d_eigen(0), 1e-300), 3) +
+                  ": its rays nearly coincide)";
+        break;
+      }
       Dinv[j] = llt.solve(Eigen::Matrix3d::Identity());
       W[j] = Dinv[j] * B[j].transpose();
       S.noalias() -= B[j] * W[j];
@@ -511,7 +525,11 @@ Result<BundleResult> BundleAdjust(const BundleData& data, const BundleOptions& o
       } else {
         int near_zero = 0;
         for (int e = 0; e < nc; ++e) near_zero += ev(e) <= tiny ? 1 : 0;
-        if (near_zero != gauge_dim) {
+        if (ev(0) < -1e-6 * top) {
+          failure = "unavailable: the reduced camera matrix is indefinite (smallest eigenvalue " +
+                    FormatNumber(ev(0) / top, 3) +
+                    " of the largest, after Jacobi scaling): ill-conditioned points";
+        } else if (near_zero != gauge_dim) {
           failure = "unavailable: " +
                     std::string(datum ? "the network has " : std::string(kGaugeWarning) + " (") +
                     std::to_string(near_zero) + " near-zero eigenvalue(s) of the reduced camera matrix" +

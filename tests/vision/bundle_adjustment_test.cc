@@ -459,6 +459,63 @@ TEST(BundleAdjustment, DatumCovarianceMatchesMonteCarlo) {
   EXPECT_LT(worst_point, 1.6);
 }
 
+// A point seen only from one position (two images of one camera that stood
+// still, as a camera shooting both grids; COLMAP's models place such images a
+// little apart): its depth is free. The 3x3 block still factors, but its
+// inverse has no digits and made the reduced camera matrix indefinite
+// (smallest eigenvalue -0.35 of the largest on a COLMAP model; refused as
+// "5 near-zero eigenvalues, 7 expected"). Now the point is named.
+TEST(BundleAdjustment, PointSeenFromOnePositionIsNamed) {
+  const Scene s = SmallScene(20, 8);
+  BundleData d = s.truth;
+  // Image 4: camera 0 again, 1e-7 of the scene away, turned a little.
+  BundleCamera twin = d.cameras[0];
+  twin.name = "cam0 again";
+  const Eigen::Vector3d centre = twin.cam_from_scene.Inverse().translation;
+  const Eigen::Vector3d target = d.points[0].point_in_scene;
+  twin.cam_from_scene = *CamFromSceneLookingAt(centre + Eigen::Vector3d(1e-7 * s.size, 0.0, 0.0),
+                                               target + Eigen::Vector3d(0.0, 0.0, 0.01), 0.03);
+  d.cameras.push_back(twin);
+  const int twin_index = static_cast<int>(d.cameras.size()) - 1;
+  const std::vector<BundleObservation> observations = d.observations;
+  for (const BundleObservation& o : observations) {
+    if (o.camera != 0) continue;
+    BundleObservation t = o;
+    t.camera = twin_index;
+    ASSERT_TRUE(d.CameraAt(twin_index).Project(d.points[static_cast<size_t>(o.point)].point_in_scene, &t.pixel_px));
+    d.observations.push_back(t);
+  }
+  // The extra point, 1.5 m in front of camera 0, seen by camera 0 and its twin only.
+  BundlePoint extra;
+  extra.point_in_scene = d.cameras[0].cam_from_scene.Inverse() * Eigen::Vector3d(0.1, -0.05, 1.5);
+  d.points.push_back(extra);
+  const int extra_index = static_cast<int>(d.points.size()) - 1;
+  for (int camera : {0, twin_index}) {
+    BundleObservation o;
+    o.camera = camera;
+    o.point = extra_index;
+    ASSERT_TRUE(d.CameraAt(camera).Project(extra.point_in_scene, &o.pixel_px));
+    d.observations.push_back(o);
+  }
+  BundleOptions options;
+  options.gauge = BundleGauge::kThreePointDatum;
+  options.datum_points = s.datum;
+  options.compute_point_covariances = true;
+  const auto r = BundleAdjust(d, options);
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  EXPECT_TRUE(r->point_covariances.empty());
+  EXPECT_NE(r->covariance_method.find("point " + std::to_string(extra_index) +
+                                      " is not determined (its 3x3 block has condition number"),
+            std::string::npos)
+      << r->covariance_method;
+  // Without the extra point the same network has its covariances.
+  d.points.pop_back();
+  d.observations.resize(d.observations.size() - 2);
+  const auto fine = BundleAdjust(d, options);
+  ASSERT_TRUE(fine.ok()) << fine.status().ToString();
+  EXPECT_EQ(fine->point_covariances.size(), d.points.size()) << fine->covariance_method;
+}
+
 TEST(ReprojectionCostFunctor, AutoDiffVersusNumericAndOpenCv) {
   std::mt19937_64 rng(4);
   std::uniform_real_distribution<double> u(-1.0, 1.0);

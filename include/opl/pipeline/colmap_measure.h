@@ -18,8 +18,10 @@
 // The chain: the front end's detection (RunImageFrontEnd, steps 1-2: spots,
 // dark frames); the intrinsics of the model's cameras (IntrinsicsFromColmap:
 // exact mapping or a refusal, held constant), the poses of its images (start
-// values, adjusted); the model's 3D points seen in two or more of the
-// shots' images as tie points, with their 2D observations (COLMAP pixels ->
+// values, adjusted); the model's 3D points seen from two or more of the
+// scene's cameras (positions: two shots of one scene camera are one
+// position), their rays meeting there at min_tag_triangulation_angle_deg or
+// more, as tie points, with their 2D observations (COLMAP pixels ->
 // OPL pixels, io/colmap_model.h), isotropic standard deviation
 // tie_point_sigma_px; then the front end's steps 5-6 (exposure groups,
 // matching, one adjustment of poses, tie points and spots with the variance

@@ -103,6 +103,21 @@ void BindDesign(py::module_& m) {
           },
           py::arg("text"), py::arg("name") = "<string>", py::arg("base_dir") = "",
           "Parses design JSON text (pattern files relative to base_dir).")
+      .def(
+          "write",
+          [](const MD& d, const std::string& path, const std::string& description) {
+            ThrowIfError(opl::WriteModuleDesignJson(d, path, description));
+          },
+          py::arg("path"), py::arg("description") = "",
+          "Writes the design as module design JSON (atomically: nothing is left on failure); a "
+          "file pattern's pattern_file is written relative to the JSON's folder.")
+      .def(
+          "format",
+          [](const MD& d, const std::string& json_dir, const std::string& description) {
+            return Unwrap(opl::FormatModuleDesignJson(d, json_dir, description));
+          },
+          py::arg("json_dir") = "", py::arg("description") = "",
+          "The design as module design JSON text (pattern_file relative to json_dir when given).")
       .def_readwrite("sources", &MD::sources)
       .def_readwrite("surface", &MD::surface)
       .def_readwrite("spot_noise_mm", &MD::spot_noise_mm)

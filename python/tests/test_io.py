@@ -195,3 +195,39 @@ def test_read_ply_with_other_properties_and_faces(tmp_path):
     xyz_file.write_text("1 2 3\n# comment\n4 x 6\n")
     with pytest.raises(opl.ParseError, match=r"bad.xyz:3: field 'y'"):
         opl.read_point_cloud(str(xyz_file))
+
+
+def test_design_written_from_python_drives_opl_simulate(prototype_design, tmp_path, apps_dir):
+    """A design changed in Python and written is read by the C++ tool: the
+    spots opl_simulate throws from it sit where the moved source's beams
+    land (the central beam of the moved source hits the 1 m screen at y =
+    the new origin's y, z = 0: a closed form, not the writer's text)."""
+    design = prototype_design
+    sources = design.sources
+    origin = np.array(sources[1].scene_from_source.translation)
+    origin[1] = -40.0
+    pose = sources[1].scene_from_source
+    pose.translation = origin
+    sources[1].scene_from_source = pose
+    design.sources = sources
+    noise_free = design
+    noise_free.spot_noise_mm = np.zeros(3)
+    path = tmp_path / "moved_design.json"
+    noise_free.write(str(path), "moved by the test")
+    doc = json.loads(path.read_text())
+    assert doc["format"] == "opl.module_design" and doc["description"] == "moved by the test"
+    assert doc["sources"][1]["origin_mm"] == [0.0, -40.0, 0.0]
+    again = opl.ModuleDesign.read(str(path))
+    assert np.allclose(again.sources[1].scene_from_source.translation, origin, atol=0)
+    out = tmp_path / "spots.csv"
+    subprocess.run([str(apps_dir / "opl_simulate"), "spots", "--design", str(path), "--out", str(out)],
+                   check=True, capture_output=True)
+    rows = [l.split(",") for l in out.read_text().splitlines() if l and not l.startswith("#")]
+    header = rows[0]
+    col = {name: header.index(name) for name in ("source", "beam", "x", "y", "z")}
+    n = doc["sources"][1]["beams_per_side"]
+    central = (n * n + 1) // 2
+    hit = [r for r in rows[1:] if r[col["source"]] == "B" and int(r[col["beam"]]) == central]
+    assert len(hit) == 1
+    x, y, z = (float(hit[0][col[k]]) for k in ("x", "y", "z"))
+    assert abs(x - 1000.0) < 1e-9 and abs(y + 40.0) < 1e-9 and abs(z) < 1e-9

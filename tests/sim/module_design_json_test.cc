@@ -1,6 +1,8 @@
 #include "opl/io/module_design_json.h"
 
+#include <algorithm>
 #include <cstdlib>
+#include <iterator>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -9,6 +11,7 @@
 #include <unistd.h>
 
 #include "opl/geometry/rotation.h"
+#include "opl/sim/simulate_spots.h"
 
 namespace opl {
 namespace {
@@ -318,6 +321,147 @@ TEST(ModuleDesignJson, InvalidJsonNonFiniteDuplicateKeysAndIo) {
                                      Replace(Doc(kTwo, kPlane), R"("version": 1)", R"("version": 3)"));
   EXPECT_EQ(ReadModuleDesignJson(path).status().message(),
             path + ": version: unsupported version 3 (this reader reads version 1)");
+}
+
+
+// The writer: every surface, every pattern, a rotated noise frame and a
+// fabrication error written, read back, and compared field by field with
+// the original, and through what the design is for (its exact calibration:
+// every beam direction; its simulated spots), not with the writer's text.
+void ExpectSameDesign(const ModuleDesign& a, const ModuleDesign& b) {
+  ASSERT_EQ(a.sources.size(), b.sources.size());
+  for (size_t k = 0; k < a.sources.size(); ++k) {
+    const SourceDesign& x = a.sources[k];
+    const SourceDesign& y = b.sources[k];
+    EXPECT_EQ(x.name, y.name);
+    EXPECT_EQ(x.pattern, y.pattern);
+    EXPECT_EQ(x.beams_per_side, y.beams_per_side);
+    // A file pattern's full angle is the reader's report of the file.
+    if (x.pattern != PatternModel::kFile) {
+      EXPECT_EQ(x.full_angle_deg, y.full_angle_deg);
+    }
+    EXPECT_EQ(x.wavelength_nm, y.wavelength_nm);
+    EXPECT_EQ(x.beam_error_mrad, y.beam_error_mrad);
+    if (x.beam_error_mrad != 0.0) {
+      EXPECT_EQ(x.beam_error_seed, y.beam_error_seed);
+    }
+    EXPECT_EQ(x.scene_from_source.translation, y.scene_from_source.translation);
+    EXPECT_LT((x.scene_from_source.RotationMatrix() - y.scene_from_source.RotationMatrix()).norm(), 1e-14);
+  }
+  EXPECT_EQ(a.spot_noise_mm, b.spot_noise_mm);
+  EXPECT_LT((a.noise_frame_rotation - b.noise_frame_rotation).norm(), 1e-14);
+  EXPECT_EQ(a.surface.type(), b.surface.type());
+  const Result<ModuleCalibration> ca = ExactCalibration(a);
+  const Result<ModuleCalibration> cb = ExactCalibration(b);
+  ASSERT_TRUE(ca.ok() && cb.ok());
+  for (size_t k = 0; k < ca->sources.size(); ++k) {
+    for (const Beam& beam : ca->sources[k].pattern.beams()) {
+      const Beam* other = cb->sources[k].pattern.Find(beam.id);
+      ASSERT_NE(other, nullptr);
+      EXPECT_LT((beam.DirectionInSource() - other->DirectionInSource()).norm(), 1e-14);
+    }
+  }
+  // Noise-free spots on the surface: the same to 1e-9 mm.
+  ModuleDesign qa = a, qb = b;
+  qa.spot_noise_mm.setZero();
+  qb.spot_noise_mm.setZero();
+  const Result<std::vector<SimulatedSpot>> sa = SimulateSpots(qa, SpotSimulationOptions());
+  const Result<std::vector<SimulatedSpot>> sb = SimulateSpots(qb, SpotSimulationOptions());
+  ASSERT_TRUE(sa.ok() && sb.ok()) << sa.status().ToString() << sb.status().ToString();
+  ASSERT_EQ(sa->size(), sb->size());
+  ASSERT_GT(sa->size(), 0u);
+  double worst = 0.0;
+  for (size_t k = 0; k < sa->size(); ++k) worst = std::max(worst, ((*sa)[k].true_point_in_scene - (*sb)[k].true_point_in_scene).norm());
+  EXPECT_LT(worst, 1e-9);
+}
+
+TEST(ModuleDesignJson, WrittenDesignsReadBackTheSame) {
+  const std::string dir = TempDir() + "/written";
+  std::filesystem::create_directories(dir + "/patterns");
+  ASSERT_TRUE(WritePatternCsv(MakeGratingPattern(5, 12 * kDeg, 658), dir + "/patterns/c.csv").ok());
+  ModuleDesign design;
+  SourceDesign a;
+  a.name = "A";
+  a.beams_per_side = 11;
+  a.full_angle_deg = 29.0;
+  a.scene_from_source = Rigid3d(RotationFromXyzAnglesRad({0.01, -0.02, 0.03}), Vec3(0.1, 27.5, -0.2));
+  a.beam_error_mrad = 0.3;
+  a.beam_error_seed = 77;
+  SourceDesign b;
+  b.name = "B";
+  b.pattern = PatternModel::kGrating;
+  b.beams_per_side = 7;
+  b.full_angle_deg = 20.0;
+  b.wavelength_nm = 635.0;
+  b.scene_from_source = Rigid3d(RotationFromXyzAnglesRad({0.1, -0.2, 0.3}), Vec3(0, -27.5, 0));
+  SourceDesign c;
+  c.name = "C";
+  c.pattern = PatternModel::kFile;
+  c.beams_per_side = 5;
+  c.pattern_file = dir + "/patterns/c.csv";
+  c.scene_from_source = Rigid3d(RotationFromXyzAnglesRad({0.0, 0.05, 0.0}), Vec3(0, 0, 10));
+  design.sources = {a, b, c};
+  design.spot_noise_mm = Vec3(0.11, 0.073, 0.07);
+  design.noise_frame_rotation = RotationFromXyzAnglesRad({0.2, 0.0, -0.1});
+
+  const std::vector<Surface> surfaces = {
+      PlaneSurface{Vec3(1000, 3, -2), Vec3(-1, 0.1, 0.05)},
+      SphereSurface{Vec3(1500, 0, 0), 700.0},
+      BoxCornerSurface{Vec3(1200, -500, -400), RotationFromXyzAnglesRad({0.0, 0.0, 0.5})},
+      ParaboloidSurface{Vec3(1000, 0, 0), Vec3(-1, 0, 0), 0.0005},
+      PlaneListSurface{{PlaneSurface{Vec3(750, 0, 0), Vec3(-1, 0, 0)},
+                        PlaneSurface{Vec3(1350, 0, 0), Vec3(-1, 0.01, 0)}}}};
+  for (const Surface& surface : surfaces) {
+    SCOPED_TRACE(surface.TypeName());
+    design.surface = surface;
+    const std::string path = dir + "/design.json";
+    ASSERT_TRUE(WriteModuleDesignJson(design, path, "written by the test").ok());
+    const Result<ModuleDesign> read = ReadModuleDesignJson(path);
+    ASSERT_TRUE(read.ok()) << read.status().ToString();
+    ExpectSameDesign(design, *read);
+    // The pattern file is named relative to the JSON's folder.
+    std::ifstream in(path);
+    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    EXPECT_NE(text.find("\"pattern_file\": \"patterns/c.csv\""), std::string::npos) << text;
+  }
+  // The bundled designs: read, written elsewhere, read again.
+  const char* root = std::getenv("OPL_SOURCE_DIR");
+  ASSERT_NE(root, nullptr);
+  for (const char* name : {"prototype_design.json", "anisotropic_design.json", "staggered_design.json",
+                           "fabricated_design.json", "scene_small_module.json",
+                           "calibration_session_small_module.json"}) {
+    SCOPED_TRACE(name);
+    const Result<ModuleDesign> original = ReadModuleDesignJson(std::string(root) + "/examples/" + name);
+    ASSERT_TRUE(original.ok()) << original.status().ToString();
+    ASSERT_TRUE(WriteModuleDesignJson(*original, dir + "/copy.json").ok());
+    const Result<ModuleDesign> copy = ReadModuleDesignJson(dir + "/copy.json");
+    ASSERT_TRUE(copy.ok()) << copy.status().ToString();
+    ExpectSameDesign(*original, *copy);
+  }
+}
+
+TEST(ModuleDesignJson, WriterRefusesWhatTheFormatCannotHold) {
+  ModuleDesign design;
+  SourceDesign a;
+  a.name = "A";
+  a.beam_error_mrad = 0.1;
+  a.beam_error_seed = 1ull << 40;
+  design.sources = {a};
+  Result<std::string> text = FormatModuleDesignJson(design);
+  ASSERT_FALSE(text.ok());
+  EXPECT_EQ(text.status().message(),
+            "module design: source 'A': beam_error_seed 1099511627776 cannot be written (the format "
+            "holds 0 to 2147483647)");
+  design.sources[0].beams_per_side = 4;  // even: invalid
+  text = FormatModuleDesignJson(design);
+  ASSERT_FALSE(text.ok());
+  EXPECT_EQ(text.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_EQ(text.status().message().rfind("module design: source 'A'", 0), 0u) << text.status().message();
+  // Nothing is written on failure.
+  const std::string path = TempDir() + "/refused.json";
+  std::filesystem::remove(path);
+  EXPECT_FALSE(WriteModuleDesignJson(design, path).ok());
+  EXPECT_FALSE(std::filesystem::exists(path));
 }
 
 }  // namespace

@@ -1,5 +1,6 @@
 // Module design JSON: a simulated module, its surface and its spot noise, as
-// a file (full format: docs/simulation.md, "Module design JSON").
+// a file (full format: docs/simulation.md, "Module design JSON"): read and
+// written.
 //
 //   {
 //     "format": "opl.module_design", "version": 1,
@@ -36,5 +37,24 @@ Result<ModuleDesign> ReadModuleDesignJson(const std::string& path);
 Result<ModuleDesign> ParseModuleDesignJson(const std::string& text,
                                            const std::string& name_for_messages,
                                            const std::string& base_dir = "");
+
+// The design as module design JSON text (the format above, keys in the
+// documented order, numbers in the shortest form that reads back to the
+// same double). Rotations are written as their (a, b, c) angles
+// (geometry/rotation.h, XyzAnglesRadFromRotation), which read back to the
+// same matrix to about 1e-15. A file pattern's pattern_file is written
+// relative to `json_dir` when given (the folder the JSON will be written
+// to, so that ReadModuleDesignJson finds it again), else as stored; the
+// pattern file itself is not written. `description`, when not empty, is
+// written as the optional free text. Errors (InvalidArgument): the design's
+// Validate(), a beam_error_seed the format cannot hold (above 2^31 - 1).
+Result<std::string> FormatModuleDesignJson(const ModuleDesign& design,
+                                           const std::string& json_dir = "",
+                                           const std::string& description = "");
+
+// FormatModuleDesignJson(design, folder of path), written atomically (nothing
+// is left on failure; io/atomic_file.h).
+Status WriteModuleDesignJson(const ModuleDesign& design, const std::string& path,
+                             const std::string& description = "");
 
 }  // namespace opl

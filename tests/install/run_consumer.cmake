@@ -26,3 +26,52 @@ if(NOT rc EQUAL 0 OR NOT out MATCHES "origin error [0-9.e+-]+ OK")
   message(FATAL_ERROR "consumer run failed (${rc}): ${out}")
 endif()
 message(STATUS "consumer: ${out}")
+
+# The README's library program (examples/library/measure_spots.cc): README
+# quotes the file verbatim, it builds against the installed OPL, and it prints
+# the s that opl_measure gives for the same bundled example.
+file(READ ${SOURCE_DIR}/README.md readme)
+file(READ ${SOURCE_DIR}/examples/library/measure_spots.cc program)
+string(FIND "${readme}" "```cpp\n${program}```" at)
+if(at EQUAL -1)
+  message(FATAL_ERROR "README.md does not quote examples/library/measure_spots.cc verbatim in a cpp block")
+endif()
+execute_process(COMMAND ${CMAKE_COMMAND} -S ${SOURCE_DIR}/examples/library -B ${WORK_DIR}/example -G Ninja
+  -DCMAKE_BUILD_TYPE=Release -DCMAKE_PREFIX_PATH=${prefix}
+  RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+if(NOT rc EQUAL 0)
+  message(FATAL_ERROR "examples/library configure failed:\n${out}\n${err}")
+endif()
+execute_process(COMMAND ${CMAKE_COMMAND} --build ${WORK_DIR}/example
+  RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+if(NOT rc EQUAL 0)
+  message(FATAL_ERROR "examples/library build failed:\n${out}\n${err}")
+endif()
+set(cal ${SOURCE_DIR}/examples/prototype_calibration.json)
+set(spots ${SOURCE_DIR}/examples/prototype_spots.csv)
+execute_process(COMMAND ${WORK_DIR}/example/measure_spots ${cal} ${spots}
+  RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+if(NOT rc EQUAL 0 OR NOT out MATCHES "^s = ([0-9.]+) \\+- ([0-9.]+)\n$")
+  message(FATAL_ERROR "measure_spots failed (${rc}): ${out}${err}")
+endif()
+set(s_program ${CMAKE_MATCH_1})
+set(u_program ${CMAKE_MATCH_2})
+if(NOT OPL_MEASURE)
+  message(STATUS "measure_spots: ${out}(not compared: opl_measure not built)")
+  return()
+endif()
+execute_process(COMMAND ${OPL_MEASURE} --calibration ${cal} --spots ${spots} --json
+  RESULT_VARIABLE rc OUTPUT_VARIABLE json)
+if(NOT rc EQUAL 0)
+  message(FATAL_ERROR "opl_measure --json failed (${rc})")
+endif()
+string(JSON s_tool GET "${json}" scale_factor)
+string(JSON u_tool GET "${json}" u_scale_factor)
+# printf's %.6f against the tool's full digits.
+execute_process(COMMAND ${PYTHON} -c
+  "import sys; a = [float(x) for x in sys.argv[1:]]; sys.exit(0 if abs(a[0] - a[2]) <= 5.01e-7 and abs(a[1] - a[3]) <= 5.01e-7 and a[1] > 0 else 1)"
+  ${s_program} ${u_program} ${s_tool} ${u_tool} RESULT_VARIABLE rc)
+if(NOT rc EQUAL 0)
+  message(FATAL_ERROR "measure_spots printed s = ${s_program} +- ${u_program}, opl_measure gives ${s_tool} +- ${u_tool}")
+endif()
+message(STATUS "measure_spots: ${out}")

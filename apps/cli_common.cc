@@ -252,5 +252,15 @@ int PrintToStdout(const std::string& tool, const std::string& text) {
   return kExitOk;
 }
 
+std::vector<std::string> ExistingShotImages(const Scene& scene, const std::string& images_dir) {
+  std::vector<std::string> files;
+  for (const SceneShot& shot : scene.shots) {
+    const std::filesystem::path image = std::filesystem::path(images_dir) / shot.file;
+    std::error_code ec;
+    if (std::filesystem::is_regular_file(image, ec)) files.push_back(image.string());
+  }
+  return files;
+}
+
 }  // namespace cli
 }  // namespace opl

@@ -116,6 +116,11 @@ int PrintToStdout(const std::string& tool, const std::string& text);
 std::optional<int> MakeRunProvenance(const std::string& tool, int argc, const char* const* argv,
                                      const std::vector<std::string>& inputs, Provenance* out);
 
+// The image files of a scene's shots that exist in `images_dir`, in shot
+// order, for the provenance's inputs (a missing image is the front end's to
+// report, not the provenance's).
+std::vector<std::string> ExistingShotImages(const Scene& scene, const std::string& images_dir);
+
 // PrintToStdout of a JSON report with the run's provenance as its last member
 // (what --json prints is often saved as a file: it says how it was made too).
 int PrintJsonToStdout(const std::string& tool, const std::string& json,

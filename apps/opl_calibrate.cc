@@ -109,11 +109,7 @@ int WriteOutputs(const Args& args, const opl::ModuleCalibrationResult& result,
   std::vector<std::string> inputs = {args.spots.path, args.targets_path, args.design_path,
                                      args.scene_path};
   if (scene != nullptr) {
-    for (const SceneShot& shot : scene->shots) {
-      const std::filesystem::path image = std::filesystem::path(args.images_dir) / shot.file;
-      std::error_code ec;
-      if (std::filesystem::is_regular_file(image, ec)) inputs.push_back(image.string());
-    }
+    for (std::string& image : cli::ExistingShotImages(*scene, args.images_dir)) inputs.push_back(std::move(image));
   }
   Provenance provenance;
   if (std::optional<int> code =

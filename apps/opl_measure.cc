@@ -143,11 +143,7 @@ int RunImages(const Args& args, int argc, char** argv) {
   // image is the front end's to report).
   std::vector<std::string> inputs = {args.calibration_path, args.scene_path, args.apply_path,
                                      args.colmap_dir};
-  for (const SceneShot& shot : scene->shots) {
-    const std::filesystem::path image = std::filesystem::path(args.images_dir) / shot.file;
-    std::error_code ec;
-    if (std::filesystem::is_regular_file(image, ec)) inputs.push_back(image.string());
-  }
+  for (std::string& image : cli::ExistingShotImages(*scene, args.images_dir)) inputs.push_back(std::move(image));
   Provenance provenance;
   if (std::optional<int> code = cli::MakeRunProvenance(kTool, argc, argv, inputs, &provenance)) {
     return *code;

@@ -487,6 +487,19 @@ Result<ProjectorAdjustmentResult> ProjectorAdjust(const ProjectorAdjustmentData&
     result.covariance_method = cov.method;
   }
   OPL_RETURN_IF_ERROR(projector_internal::MoveToDatum(pb, options, cov, &result));
+  if (options.compute_covariances && options.scale_by_variance_factor && result.variance_factor > 1.0 &&
+      !result.point_covariances_mm2.empty()) {
+    const double f = result.variance_factor;
+    const double sf = std::sqrt(f);
+    for (auto* list : {&result.point_covariances_mm2, &result.camera_center_covariances_mm2,
+                       &result.module_origin_covariances_mm2}) {
+      for (Eigen::Matrix3d& c : *list) c *= f;
+    }
+    result.u_scale_factor *= sf;
+    result.u_datum_length_mm *= sf;
+    result.u_module_length_factor *= sf;
+    result.covariance_method += "; scaled by the variance factor " + FormatNumber(f, 3);
+  }
   return result;
 }
 

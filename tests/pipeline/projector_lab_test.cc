@@ -157,6 +157,47 @@ TEST(ProjectorAdjust, UncertaintyOfScaleMatchesItsSpreadAndTheTwoStepPath) {
 }
 
 
+// Observations that scatter twice as much as their covariances say: the
+// variance factor comes out about 4, and u(s) and the covariances are
+// enlarged by it, to what the honest covariances give; without the option
+// they would be half that.
+TEST(ProjectorAdjust, VarianceFactorEnlargesTheUncertainties) {
+  const Scene scene = SmallScene();
+  Result<ModuleCalibration> cal = ExactCalibration(*scene.module);
+  ASSERT_TRUE(cal.ok());
+  const test::ProjectorLabCase c = test::MakeProjectorLabCase(scene, *cal, 0.1, 0.15, 7);
+  ProjectorAdjustmentOptions options;
+  options.datum_point_sets = c.datum_sets;
+  options.unscaled_datum_length = 1500.0;
+  Result<ProjectorAdjustmentResult> honest = ProjectorAdjust(c.start, options);
+  ASSERT_TRUE(honest.ok()) << honest.status().ToString();
+  ASSERT_GT(honest->u_scale_factor, 0.0) << honest->covariance_method;
+
+  ProjectorAdjustmentData claimed = c.start;  // the same pixels, covariances 4x too small
+  for (BundleObservation& o : claimed.bundle.observations) o.covariance_px2 /= 4.0;
+  for (ProjectorSpot& spot : claimed.spots) {
+    for (ProjectorSpotObservation& o : spot.observations) o.covariance_px2 /= 4.0;
+  }
+  Result<ProjectorAdjustmentResult> scaled = ProjectorAdjust(claimed, options);
+  ASSERT_TRUE(scaled.ok()) << scaled.status().ToString();
+  EXPECT_NEAR(scaled->variance_factor, 4.0 * honest->variance_factor, 1e-6 * scaled->variance_factor);
+  EXPECT_GT(scaled->variance_factor, 1.0);
+  EXPECT_NE(scaled->covariance_method.find("scaled by the variance factor"), std::string::npos);
+  const double expected = honest->u_scale_factor * std::sqrt(scaled->variance_factor / 4.0) /
+                          std::sqrt(std::max(1.0, honest->variance_factor));
+  EXPECT_NEAR(scaled->u_scale_factor, expected, 1e-6 * expected);
+  EXPECT_NEAR(scaled->scale_factor, honest->scale_factor, 1e-9 * honest->scale_factor);
+  const Eigen::Matrix3d ratio = scaled->point_covariances_mm2[5].cwiseQuotient(honest->point_covariances_mm2[5]);
+  EXPECT_NEAR(ratio(0, 0), scaled->variance_factor / 4.0 / std::max(1.0, honest->variance_factor), 1e-6);
+
+  ProjectorAdjustmentOptions unscaled = options;
+  unscaled.scale_by_variance_factor = false;
+  Result<ProjectorAdjustmentResult> raw = ProjectorAdjust(claimed, unscaled);
+  ASSERT_TRUE(raw.ok());
+  EXPECT_NEAR(raw->u_scale_factor, scaled->u_scale_factor / std::sqrt(scaled->variance_factor),
+              1e-6 * raw->u_scale_factor);
+}
+
 // The calibration as a prior. With the separation's u(L) > 0 the module's
 // length factor lambda is free under it; the photographs say nothing about
 // it (the scene's scale and the module's trade exactly), so its posterior

@@ -38,7 +38,9 @@
 // Linear solver: Schur complement with the depths and the tag points in
 // elimination group 0 (SPARSE_SCHUR with SuiteSparse, else DENSE_SCHUR).
 //
-// Covariances (first order, the observations' covariances taken as true):
+// Covariances (first order, the observations' covariances taken as true,
+// then enlarged by the variance factor when it exceeds 1, see
+// ProjectorAdjustmentOptions::scale_by_variance_factor):
 // H = J^T J at the solution, the depths eliminated (S = A - B D^-1 B^T, D
 // diagonal), S scaled to unit diagonal (P S P, P = diag(S)^-1/2) and its
 // pseudo-inverse taken with its six gauge directions dropped: G = P (P S
@@ -132,6 +134,13 @@ struct ProjectorAdjustmentOptions {
   bool adjust_source_rotations = true;
   bool adjust_module_length = true;
   bool compute_covariances = true;
+  // When the a-posteriori variance factor (chi^2 / redundancy) exceeds 1,
+  // the observations scatter more than their covariances say: every
+  // covariance of the result is multiplied by it and every u by its square
+  // root (as the two-step path enlarges its spots' covariances). Below 1 the
+  // covariances are kept (a lucky sample never shrinks them). On the harder
+  // virtual lab (JPEG, texture, distractors) the factor is about 1.8.
+  bool scale_by_variance_factor = true;
 
   Status Validate() const;
 };

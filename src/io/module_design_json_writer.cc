@@ -11,6 +11,7 @@
 #include "opl/geometry/rotation.h"
 #include "opl/io/atomic_file.h"
 #include "opl/io/module_design_json.h"
+#include "opl/sim/pattern_models.h"
 
 namespace opl {
 namespace {
@@ -72,18 +73,6 @@ ojson SurfaceJson(const Surface& surface) {
   return j;
 }
 
-const char* PatternName(PatternModel pattern) {
-  switch (pattern) {
-    case PatternModel::kEqualAngle:
-      return "equal_angle";
-    case PatternModel::kGrating:
-      return "grating";
-    case PatternModel::kFile:
-      return "file";
-  }
-  return "equal_angle";
-}
-
 }  // namespace
 
 Result<std::string> FormatModuleDesignJson(const ModuleDesign& design, const std::string& json_dir,
@@ -104,7 +93,7 @@ Result<std::string> FormatModuleDesignJson(const ModuleDesign& design, const std
     }
     ojson j;
     j["name"] = s.name;
-    j["pattern"] = PatternName(s.pattern);
+    j["pattern"] = PatternModelName(s.pattern);
     j["beams_per_side"] = s.beams_per_side;
     if (s.pattern == PatternModel::kFile) {
       std::filesystem::path file(s.pattern_file);

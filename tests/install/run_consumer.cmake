@@ -10,17 +10,22 @@ if(NOT EXISTS ${prefix}/lib/cmake/opl/oplConfig.cmake AND NOT EXISTS ${prefix}/l
    AND NOT EXISTS ${prefix}/lib/x86_64-linux-gnu/cmake/opl/oplConfig.cmake)
   message(FATAL_ERROR "no oplConfig.cmake under ${prefix}")
 endif()
-execute_process(COMMAND ${CMAKE_COMMAND} -S ${CONSUMER_SOURCE_DIR} -B ${WORK_DIR}/build -G Ninja
-  -DCMAKE_BUILD_TYPE=Release -DCMAKE_PREFIX_PATH=${prefix}
-  RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
-if(NOT rc EQUAL 0)
-  message(FATAL_ERROR "consumer configure failed:\n${out}\n${err}")
-endif()
-execute_process(COMMAND ${CMAKE_COMMAND} --build ${WORK_DIR}/build
-  RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
-if(NOT rc EQUAL 0)
-  message(FATAL_ERROR "consumer build failed:\n${out}\n${err}")
-endif()
+# Configures and builds the project in `source` against the installed OPL,
+# into `binary`; stops the test naming `what` on failure.
+function(build_against_install what source binary)
+  execute_process(COMMAND ${CMAKE_COMMAND} -S ${source} -B ${binary} -G Ninja
+    -DCMAKE_BUILD_TYPE=Release -DCMAKE_PREFIX_PATH=${prefix}
+    RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+  if(NOT rc EQUAL 0)
+    message(FATAL_ERROR "${what} configure failed:\n${out}\n${err}")
+  endif()
+  execute_process(COMMAND ${CMAKE_COMMAND} --build ${binary}
+    RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+  if(NOT rc EQUAL 0)
+    message(FATAL_ERROR "${what} build failed:\n${out}\n${err}")
+  endif()
+endfunction()
+build_against_install(consumer ${CONSUMER_SOURCE_DIR} ${WORK_DIR}/build)
 execute_process(COMMAND ${WORK_DIR}/build/consumer RESULT_VARIABLE rc OUTPUT_VARIABLE out)
 if(NOT rc EQUAL 0 OR NOT out MATCHES "origin error [0-9.e+-]+ OK")
   message(FATAL_ERROR "consumer run failed (${rc}): ${out}")
@@ -36,17 +41,7 @@ string(FIND "${readme}" "```cpp\n${program}```" at)
 if(at EQUAL -1)
   message(FATAL_ERROR "README.md does not quote examples/library/measure_spots.cc verbatim in a cpp block")
 endif()
-execute_process(COMMAND ${CMAKE_COMMAND} -S ${SOURCE_DIR}/examples/library -B ${WORK_DIR}/example -G Ninja
-  -DCMAKE_BUILD_TYPE=Release -DCMAKE_PREFIX_PATH=${prefix}
-  RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
-if(NOT rc EQUAL 0)
-  message(FATAL_ERROR "examples/library configure failed:\n${out}\n${err}")
-endif()
-execute_process(COMMAND ${CMAKE_COMMAND} --build ${WORK_DIR}/example
-  RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
-if(NOT rc EQUAL 0)
-  message(FATAL_ERROR "examples/library build failed:\n${out}\n${err}")
-endif()
+build_against_install(examples/library ${SOURCE_DIR}/examples/library ${WORK_DIR}/example)
 set(cal ${SOURCE_DIR}/examples/prototype_calibration.json)
 set(spots ${SOURCE_DIR}/examples/prototype_spots.csv)
 execute_process(COMMAND ${WORK_DIR}/example/measure_spots ${cal} ${spots}

@@ -189,8 +189,9 @@ TEST(SceneJson, MessagesNameTheFieldExactly) {
             "s.json: cameras[0].focal: unknown field (allowed here: calibration, cam_from_scene, height_px, "
             "intrinsics, name, pose, width_px)");
   EXPECT_EQ(Message(Doc() .substr(0, Doc().size() - 1) + R"(, "images": 1})"),
-            "s.json: images: unknown field (allowed here: artifact, cameras, description, format, "
-            "frame, image, module, provenance, seed, shots, spots, tags, version)");
+            "s.json: images: unknown field (allowed here: artifact, cameras, check_lengths, "
+            "description, format, frame, image, module, module_placements, provenance, seed, shots, "
+            "spots, tags, version)");
   // Wrong type.
   EXPECT_EQ(Message(Doc("[" + kCamera + "]", R"({"size_mm": "abc", "placements": []})")),
             "s.json: tags.size_mm: expected a number, got \"abc\"");
@@ -358,6 +359,95 @@ TEST(SceneJson, MeasurementSceneRoundTrips) {
     EXPECT_EQ(back->shots[k].lasers, full->shots[k].lasers);
     EXPECT_EQ(back->shots[k].slice, full->shots[k].slice);
   }
+}
+
+// Module placements (issue 20): named motions of the designed module, each
+// lit shot naming one; the motion rotates about the sources' centroid.
+TEST(SceneJson, ModulePlacementsAreReadCheckedAndWrittenBack) {
+  const std::string placements =
+      R"(, "module_placements": [{"name": "P1"},
+            {"name": "P2", "rotation_deg": [0, 0, 90], "translation_mm": [0, 300, -50]}])";
+  const std::string shots = R"([{"camera": "cam0", "file": "a.png", "lasers": ["A"], "placement": "P1"},
+                                {"camera": "cam0", "file": "b.png", "lasers": ["A"], "placement": "P2"},
+                                {"camera": "cam0", "file": "c.png"}])";
+  Result<Scene> scene = ParseSceneJson(Doc("[" + kCamera + "]", kTags, shots, placements), "s.json");
+  ASSERT_TRUE(scene.ok()) << scene.status().ToString();
+  ASSERT_EQ(scene->module_placements.size(), 2u);
+  EXPECT_EQ(scene->shots[1].placement, "P2");
+  EXPECT_EQ(scene->shots[2].placement, "");  // laser off: no placement needed
+  EXPECT_EQ(scene->FindModulePlacement("P2"), 1);
+  EXPECT_EQ(scene->FindModulePlacement("P3"), -1);
+  // The one source sits at the origin, so the centroid is the origin: 90 deg
+  // about z takes x to y, then the translation.
+  const Rigid3d move = scene->module_placements[1].SceneFromDesign(*scene->module);
+  EXPECT_LT((move * Eigen::Vector3d(10, 0, 0) - Eigen::Vector3d(0, 310, -50)).norm(), 1e-12);
+  EXPECT_LT((scene->module_placements[0].SceneFromDesign(*scene->module) * Eigen::Vector3d(1, 2, 3) -
+             Eigen::Vector3d(1, 2, 3)).norm(), 0.0 + 1e-15);
+  // Back through the measurement scene writer.
+  Result<Scene> back = ParseSceneJson(FormatMeasurementSceneJson(*scene, "", ""), "back.json", "",
+                                      SceneUse::kMeasure);
+  ASSERT_TRUE(back.ok()) << back.status().ToString();
+  ASSERT_EQ(back->module_placements.size(), 2u);
+  EXPECT_EQ(back->module_placements[1].rotation_deg, scene->module_placements[1].rotation_deg);
+  EXPECT_EQ(back->module_placements[1].translation_mm, scene->module_placements[1].translation_mm);
+  EXPECT_EQ(back->shots[1].placement, "P2");
+  EXPECT_EQ(back->shots[2].placement, "");
+
+  EXPECT_EQ(Message(Doc("[" + kCamera + "]", kTags,
+                        R"([{"camera": "cam0", "file": "a.png", "lasers": ["A"], "placement": "P9"}])",
+                        placements)),
+            "s.json: shots[0].placement: no module placement named 'P9'");
+  EXPECT_EQ(Message(Doc("[" + kCamera + "]", kTags, kShots, placements)),
+            "s.json: shots[0].placement: missing: the scene lists module_placements, so a shot with "
+            "a laser on must name the placement it shows");
+  EXPECT_EQ(Message(Doc("[" + kCamera + "]", kTags,
+                        R"([{"camera": "cam0", "file": "a.png", "lasers": ["A"], "placement": "P1"}])")),
+            "s.json: shots[0].placement: 'P1': the scene lists no module_placements");
+  EXPECT_EQ(Message(Doc("[" + kCamera + "]", kTags, kShots,
+                        R"(, "module_placements": [{"name": "P"}, {"name": "P"}])")),
+            "s.json: module_placements[1].name: duplicate placement name 'P' (also "
+            "module_placements[0])");
+  EXPECT_EQ(Message(Doc("[" + kCamera + "]", kTags, kShots,
+                        R"(, "module_placements": [{"name": "P", "rotation_deg": [0, 400, 0]}])")),
+            "s.json: module_placements[0].rotation_deg: each angle must be finite and within "
+            "[-360, 360] deg");
+  EXPECT_THAT(Message(Doc("[" + kCamera + "]", kTags, kShots,
+                          R"(, "module_placements": [{"name": "P", "translate_mm": [0, 0, 0]}])")),
+              testing::StartsWith("s.json: module_placements[0].translate_mm: unknown field"));
+}
+
+TEST(SceneJson, CheckLengthsAreReadCheckedAndWrittenBack) {
+  const std::string lengths =
+      R"(, "check_lengths": [{"name": "diagonal", "tag_1": 3, "tag_2": 4, "length_mm": 400.25,
+                              "length_sigma_mm": 0.004}])";
+  Result<Scene> scene = ParseSceneJson(Doc("[" + kCamera + "]", kTags, kShots, lengths), "s.json");
+  ASSERT_TRUE(scene.ok()) << scene.status().ToString();
+  ASSERT_EQ(scene->check_lengths.size(), 1u);
+  EXPECT_EQ(scene->check_lengths[0].name, "diagonal");
+  EXPECT_EQ(scene->check_lengths[0].tag_2, 4);
+  EXPECT_EQ(scene->check_lengths[0].length_mm, 400.25);
+  EXPECT_EQ(scene->check_lengths[0].length_sigma_mm, 0.004);
+  Result<Scene> back = ParseSceneJson(FormatMeasurementSceneJson(*scene, "", ""), "back.json", "",
+                                      SceneUse::kMeasure);
+  ASSERT_TRUE(back.ok()) << back.status().ToString();
+  ASSERT_EQ(back->check_lengths.size(), 1u);
+  EXPECT_EQ(back->check_lengths[0].length_mm, 400.25);
+  EXPECT_EQ(back->check_lengths[0].length_sigma_mm, 0.004);
+
+  auto with = [&](const std::string& entry) {
+    return Message(Doc("[" + kCamera + "]", kTags, kShots, R"(, "check_lengths": [)" + entry + "]"));
+  };
+  EXPECT_EQ(with(R"({"name": "a", "tag_1": 3, "tag_2": 9, "length_mm": 1})"),
+            "s.json: check_lengths[0].tag_2: tag 9 is not among the scene's tags");
+  EXPECT_EQ(with(R"({"name": "a", "tag_1": 3, "tag_2": 3, "length_mm": 1})"),
+            "s.json: check_lengths[0].tag_2: must differ from tag_1 (3)");
+  EXPECT_EQ(with(R"({"name": "a", "tag_1": 3, "tag_2": 4, "length_mm": 0})"),
+            "s.json: check_lengths[0].length_mm: 0: must be finite and > 0");
+  EXPECT_EQ(with(R"({"name": "a", "tag_1": 3, "tag_2": 4})"),
+            "s.json: check_lengths[0].length_mm: missing field");
+  EXPECT_EQ(with(R"({"name": "a", "tag_1": 3, "tag_2": 4, "length_mm": 1},
+                   {"name": "a", "tag_1": 4, "tag_2": 5, "length_mm": 1})"),
+            "s.json: check_lengths[1].name: duplicate check length name 'a' (also check_lengths[0])");
 }
 
 }  // namespace

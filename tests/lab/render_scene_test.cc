@@ -11,6 +11,8 @@
 #include <cmath>
 #include <cstdlib>
 #include <limits>
+#include <map>
+#include <tuple>
 
 #include <Eigen/Eigenvalues>
 #include <gtest/gtest.h>
@@ -341,6 +343,66 @@ TEST(RenderScene, ErrorsNameTheField) {
             "module: missing (rendering needs the module and its surface)");
   scene = WallScene(320, 240);
   EXPECT_EQ(RenderShot(scene, 1).status().message(), "shot index 1: the scene has 1 shots");
+}
+
+// Module placements (issue 20): at each placement the module's rays leave
+// the moved origins along the moved directions and hit the unmoved wall; a
+// shot shows only its placement's spots.
+TEST(RenderScene, ModulePlacementsMoveTheModuleNotTheWall) {
+  const char* root = std::getenv("OPL_SOURCE_DIR");
+  ASSERT_NE(root, nullptr);
+  Result<Scene> read = ReadSceneJson(std::string(root) + "/examples/scene_small.json");
+  ASSERT_TRUE(read.ok()) << read.status().message();
+  Scene scene = *read;
+  SceneModulePlacement p1, p2, p3;
+  p1.name = "P1";
+  p2.name = "P2";
+  p2.translation_mm = Eigen::Vector3d(0.0, 200.0, 100.0);  // parallel to the wall x = 2000
+  p3.name = "P3";
+  p3.rotation_deg = Eigen::Vector3d(0.0, 3.0, 10.0);
+  p3.translation_mm = Eigen::Vector3d(150.0, -100.0, 50.0);
+  scene.module_placements = {p1, p2, p3};
+  for (SceneShot& shot : scene.shots) shot.placement = shot.lasers.empty() ? "" : "P2";
+  Result<SceneRenderer> renderer = SceneRenderer::Create(scene);
+  ASSERT_TRUE(renderer.ok()) << renderer.status().message();
+  std::map<std::tuple<std::string, std::string, int>, Eigen::Vector3d> hit;
+  for (const SceneSpotTruth& s : renderer->spots()) hit[{s.placement, s.source, s.beam}] = s.point_in_scene;
+  ASSERT_EQ(hit.size(), 3u * 2u * 121u);
+  // P2: every spot moves by the translation, exactly (a plane wall).
+  for (const auto& [key, p] : hit) {
+    if (std::get<0>(key) != "P1") continue;
+    const Eigen::Vector3d& q = hit.at({"P2", std::get<1>(key), std::get<2>(key)});
+    EXPECT_LT((q - p - p2.translation_mm).norm(), 1e-9);
+  }
+  // P3: the spot lies on the wall, on the ray from the moved origin along
+  // the moved beam (R = Rx Ry Rz about the sources' centroid, here the
+  // origin of the design frame).
+  const Eigen::Matrix3d R = (Eigen::AngleAxisd(3.0 * M_PI / 180.0, Eigen::Vector3d::UnitY()) *
+                             Eigen::AngleAxisd(10.0 * M_PI / 180.0, Eigen::Vector3d::UnitZ()))
+                                .toRotationMatrix();  // Rx(0) Ry(3 deg) Rz(10 deg)
+  for (const SourceDesign& source : scene.module->sources) {
+    Result<BeamPattern> pattern = MakePattern(source);
+    ASSERT_TRUE(pattern.ok());
+    const Eigen::Vector3d origin = R * source.scene_from_source.translation + p3.translation_mm;
+    for (const Beam& beam : pattern->beams()) {
+      const Eigen::Vector3d d = R * (source.scene_from_source.RotationMatrix() * beam.DirectionInSource());
+      const Eigen::Vector3d q = hit.at({"P3", source.name, beam.id});
+      EXPECT_NEAR(q.x(), 2000.0, 1e-9);
+      EXPECT_LT((q - origin).normalized().cross(d.normalized()).norm(), 1e-12);
+    }
+  }
+  // A lit shot at P2 shows P2's spots only.
+  int lit = -1;
+  for (size_t k = 0; k < scene.shots.size() && lit < 0; ++k) {
+    if (!scene.shots[k].lasers.empty()) lit = static_cast<int>(k);
+  }
+  ASSERT_GE(lit, 0);
+  Result<RenderedShot> shot = renderer->RenderShot(lit);
+  ASSERT_TRUE(shot.ok());
+  ASSERT_EQ(shot->spots.size(), 121u);
+  for (const SpotView& v : shot->spots) {
+    EXPECT_EQ(renderer->spots()[static_cast<size_t>(v.spot_index)].placement, "P2");
+  }
 }
 
 }  // namespace

@@ -8,6 +8,7 @@
 // checks s against it. Also the per-image report and the bad-input errors.
 #include "opl/pipeline/measure_images.h"
 
+#include <algorithm>
 #include <cstdlib>
 #include <fstream>
 #include <iostream>
@@ -234,6 +235,71 @@ TEST(MeasureScaleFromImages, BadInputNamesTheFile) {
   scene.shots.resize(1);
   r = MeasureScaleFromImages(scene, dir.string(), *calibration);
   EXPECT_EQ(r.status().message(), "scene: 1 shot(s); at least two images are needed");
+  std::filesystem::remove_all(dir);
+}
+
+// Two module placements (issue 20; examples/scene_small_placements.json):
+// each grid is identified and located at each placement, the scale combines
+// both, and the projector adjustment poses the module once per placement.
+// Noise-free render: both paths agree with the truth fit.
+TEST(MeasureScaleFromImages, ModuleAtTwoPlacements) {
+  Result<Scene> read = ReadSceneJson(SourceDir() + "/examples/scene_small_placements.json");
+  ASSERT_TRUE(read.ok()) << read.status().ToString();
+  Scene scene = *read;
+  scene.image.read_noise = 0.0;
+  scene.image.gain_e_per_dn = 0.0;
+  scene.image.bit_depth = 16;
+  scene.spots.speckle_contrast = 0.0;
+  const std::filesystem::path dir = FreshTempDir("measure_images_placements");
+  const SceneRenderer truth = RenderAll(scene, dir);
+  Result<ModuleCalibration> calibration = ExactCalibration(*scene.module);
+  ASSERT_TRUE(calibration.ok());
+  ImageMeasureOptions options;
+  options.front_end.num_threads = 2;
+  options.front_end.scale_in_adjustment = true;
+  Result<ImageMeasureReport> report = MeasureScaleFromImages(scene, dir.string(), *calibration, options);
+  ASSERT_TRUE(report.ok()) << report.status().ToString();
+  std::cout << report->ToText();
+  // Four groups (two lasers x two placements), four located sources, one
+  // length per placement.
+  ASSERT_EQ(report->front_end.groups.size(), 4u);
+  const MeasureReport& m = report->measure;
+  ASSERT_EQ(m.sources.size(), 4u);
+  ASSERT_EQ(m.source_placements.size(), 4u);
+  EXPECT_EQ(m.source_placements[0], "centre");
+  EXPECT_EQ(m.source_placements[3], "aside");
+  ASSERT_EQ(m.scale.lengths.size(), 2u);
+  EXPECT_EQ(m.scale.lengths[0].placement, "centre");
+  EXPECT_EQ(m.scale.lengths[1].placement, "aside");
+  EXPECT_TRUE(report->metadata_conflicts.empty());
+  // The located origins of the second placement are the first's moved by
+  // the placement's motion (relative to the unscaled scene: compare the
+  // baseline's direction, which a similarity keeps).
+  const Rigid3d move = scene.module_placements[1].SceneFromDesign(*scene.module);
+  const Eigen::Vector3d base_centre = m.sources[1].second.scene_from_source.translation -
+                                      m.sources[0].second.scene_from_source.translation;
+  const Eigen::Vector3d base_aside = m.sources[3].second.scene_from_source.translation -
+                                     m.sources[2].second.scene_from_source.translation;
+  const double turn = std::acos(std::clamp(base_centre.normalized().dot(base_aside.normalized()), -1.0, 1.0));
+  EXPECT_NEAR(turn * 180.0 / M_PI, Eigen::AngleAxisd(move.rotation).angle() * 180.0 / M_PI, 0.5);
+  const test::TruthFit fit = test::FitToTruth(*report, truth);
+  std::cout.precision(10);
+  std::cout << "truth fit: " << fit.points << " spots (both placements), scale " << fit.scale
+            << ", rms " << fit.rms_mm << " mm; s = " << m.scale.scale_factor << " +- "
+            << m.scale.u_scale_factor << "; lengths: " << m.scale.lengths[0].scale << ", "
+            << m.scale.lengths[1].scale << "\n";
+  EXPECT_GE(fit.points, 400);
+  EXPECT_EQ(fit.wrong, 0);
+  EXPECT_LT(std::abs(m.scale.scale_factor / fit.scale - 1.0), 5e-5);
+  ASSERT_TRUE(report->projector.has_value());
+  ASSERT_EQ(report->projector->scene_from_module.size(), 2u);
+  std::cout << "projector: s = " << report->projector->scale_factor << " +- "
+            << report->projector->u_scale_factor << "\n";
+  EXPECT_LT(std::abs(report->projector->scale_factor / fit.scale - 1.0), 5e-5);
+  // The JSON names the placements.
+  const nlohmann::json doc = nlohmann::json::parse(report->ToJson());
+  EXPECT_EQ(doc.at("measure").at("sources").at(2).at("placement").get<std::string>(), "aside");
+  EXPECT_EQ(doc.at("measure").at("lengths").at(1).at("placement").get<std::string>(), "aside");
   std::filesystem::remove_all(dir);
 }
 

@@ -149,5 +149,35 @@ TEST(ScaleFactor, LengthUncertaintyMatchesEmpiricalSpread) {
   EXPECT_NEAR(stddev(s) / std::sqrt(s_reported / trials), 1.0, 0.10);
 }
 
+// Two placements of the module (issue 20): a pair joins two sources of one
+// placement only, the photogrammetric errors of the placements average down,
+// and the calibrated length's error, shared by both, does not.
+TEST(ScaleFactor, PlacementsShareTheCalibrationError) {
+  ModuleCalibration cal = ThreeSourceCalibration({0, 0, 0}, {0, 50, 0}, {0, 0, 50}, 0.002);
+  cal.separations.resize(1);  // A-B only
+  const Eigen::Matrix3d Ca = Eigen::Vector3d(0.04, 1, 1).asDiagonal();
+  const Eigen::Matrix3d Cb = Eigen::Vector3d(0.09, 1, 1).asDiagonal();
+  std::vector<LocatedOrigin> located = {{"A", {0, 0, 0}, Ca, "P1"},
+                                        {"B", {100, 0, 0}, Cb, "P1"},
+                                        {"A", {0, 300, 10}, Ca, "P2"},
+                                        {"B", {100, 300, 10}, Cb, "P2"}};
+  auto r = ComputeScaleFactor(cal, located);
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  ASSERT_EQ(r->lengths.size(), 2u);
+  EXPECT_EQ(r->lengths[0].placement, "P1");
+  EXPECT_EQ(r->lengths[1].placement, "P2");
+  EXPECT_DOUBLE_EQ(r->scale_factor, 0.5);
+  // Each pair: u(s_p)^2 = s^2 (0.13 / 100^2) + (u_cal / 100)^2; the mean of
+  // two: the first term halves, the second (one calibration) stays.
+  const double photo2 = 0.25 * 0.13 / 1e4, cal2 = std::pow(0.002 / 100.0, 2);
+  EXPECT_NEAR(r->lengths[0].u_scale, std::sqrt(photo2 + cal2), 1e-15);
+  EXPECT_NEAR(r->u_scale_factor, std::sqrt(photo2 / 2.0 + cal2), 1e-15);
+  EXPECT_EQ(r->dof, 1);
+  // Sources of different placements are never paired.
+  auto apart = ComputeScaleFactor(cal, {located[0], located[3]});
+  ASSERT_FALSE(apart.ok());
+  EXPECT_EQ(apart.status().message(), "no calibrated separation joins two located sources");
+}
+
 }  // namespace
 }  // namespace opl

@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <map>
+#include <tuple>
 #include <string>
 #include <utility>
 #include <vector>
@@ -28,12 +29,13 @@ struct TruthFit {
 
 inline TruthFit FitToTruth(const ImageMeasureReport& report, const SceneRenderer& truth,
                            double wrong_mm = 5.0) {
-  std::map<std::pair<std::string, int>, Eigen::Vector3d> true_point;
-  for (const SceneSpotTruth& s : truth.spots()) true_point[{s.source, s.beam}] = s.point_in_scene;
+  // (placement, source, beam): a module placement's grid is a grid of its own.
+  std::map<std::tuple<std::string, std::string, int>, Eigen::Vector3d> true_point;
+  for (const SceneSpotTruth& s : truth.spots()) true_point[{s.placement, s.source, s.beam}] = s.point_in_scene;
   std::vector<Eigen::Vector3d> measured, truths;
   for (const Spot& spot : report.spots) {
     if (!spot.assigned()) continue;
-    const auto found = true_point.find({spot.source, spot.observation.beam_id});
+    const auto found = true_point.find({spot.placement, spot.source, spot.observation.beam_id});
     if (found == true_point.end()) continue;
     measured.push_back(spot.observation.point_in_scene);
     truths.push_back(found->second);

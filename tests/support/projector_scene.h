@@ -189,13 +189,18 @@ inline Result<TwoStepResult> RunTwoStep(const ProjectorLabCase& c, double unscal
   if (adjusted->point_covariances.empty()) {
     return Status::NoSolution("two-step bundle adjustment: covariances " + adjusted->covariance_method);
   }
+  // One exposure group per (placement, source); with several placements
+  // each group names its placement, so that each grid is located on its
+  // own and the scale combines them (pipeline/measure.h).
   FrontEndResult fe;
-  std::map<std::string, int> group_of;
+  std::map<std::pair<int, std::string>, int> group_of;
+  const bool named = c.start.placements.size() > 1;
   for (const ProjectorSpot& s : c.start.spots) {
-    if (group_of.count(s.source)) continue;
-    group_of[s.source] = static_cast<int>(fe.groups.size());
+    if (group_of.count({s.placement, s.source})) continue;
+    group_of[{s.placement, s.source}] = static_cast<int>(fe.groups.size());
     ExposureGroup g;
     g.lasers = {s.source};
+    if (named) g.placement = c.start.placements[static_cast<size_t>(s.placement)].name;
     fe.groups.push_back(g);
   }
   for (size_t k = 0; k < c.start.spots.size(); ++k) {
@@ -205,7 +210,7 @@ inline Result<TwoStepResult> RunTwoStep(const ProjectorLabCase& c, double unscal
     s.covariance = adjusted->point_covariances[p];
     s.own_covariance = adjusted->point_own_covariances[p];
     s.shared_factor = adjusted->point_shared_factors[p];
-    s.group = group_of.at(c.start.spots[k].source);
+    s.group = group_of.at({c.start.spots[k].placement, c.start.spots[k].source});
     fe.spots.push_back(s);
   }
   TwoStepResult out;

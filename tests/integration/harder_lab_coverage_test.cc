@@ -84,6 +84,10 @@ struct Outcome {
   bool measured = false;
   std::string error;
   double s = 0.0, u = 0.0, s_true = 0.0, z = 0.0;
+  // The scale inside the adjustment (FrontEndOptions::scale_in_adjustment),
+  // judged against the same truth.
+  bool projector = false;
+  double s_projector = 0.0, u_projector = 0.0, z_projector = 0.0;
   int identified = 0, wrong = 0;
   int visible = 0, found = 0, false_spots = 0;
   int warnings = 0;
@@ -107,6 +111,7 @@ Outcome MeasureSeed(const Scene& base, uint64_t seed) {
   Result<ModuleCalibration> calibration = ExactCalibration(*scene.module);
   ImageMeasureOptions options;
   options.front_end.num_threads = 2;
+  options.front_end.scale_in_adjustment = true;
   Result<ImageMeasureReport> report =
       MeasureScaleFromImages(scene, dir.string(), *calibration, options);
   std::filesystem::remove_all(dir);
@@ -126,6 +131,12 @@ Outcome MeasureSeed(const Scene& base, uint64_t seed) {
   out.s = report->measure.scale.scale_factor;
   out.u = report->measure.scale.u_scale_factor;
   out.z = out.u > 0.0 && fit.points >= 4 ? (out.s - out.s_true) / out.u : 0.0;
+  if (report->projector && report->projector->u_scale_factor > 0.0 && fit.points >= 4) {
+    out.projector = true;
+    out.s_projector = report->projector->scale_factor;
+    out.u_projector = report->projector->u_scale_factor;
+    out.z_projector = (out.s_projector - out.s_true) / out.u_projector;
+  }
   const test::SpotCounts counts = test::CountSpots(*truth, *report);
   out.visible = counts.visible;
   out.found = counts.found;
@@ -140,7 +151,8 @@ TEST(HarderLabCoverage, ScaleWithinItsUncertaintyAndNoWrongSpot) {
   const int n = EnvInt("OPL_HARDER_LAB_SCENES", 8);
   const int first = EnvInt("OPL_HARDER_LAB_FIRST_SEED", 1);
   int measured = 0, within = 0, wrong = 0, visible = 0, found = 0, false_spots = 0;
-  double sum_z2 = 0.0, seconds = 0.0;
+  int projector = 0, projector_within = 0;
+  double sum_z2 = 0.0, seconds = 0.0, sum_zp2 = 0.0;
   for (int k = first; k < first + n; ++k) {
     const Outcome o = MeasureSeed(scene, static_cast<uint64_t>(k));
     if (!o.measured) {
@@ -156,10 +168,15 @@ TEST(HarderLabCoverage, ScaleWithinItsUncertaintyAndNoWrongSpot) {
     found += o.found;
     false_spots += o.false_spots;
     seconds += o.seconds;
-    std::printf("seed %d: s %.6f +- %.4f, s_true %.6f, z %+.2f; %d identified, %d wrong; recall "
-                "%d/%d, false spots %d; %d warnings; %.1f s\n",
-                k, o.s, o.u, o.s_true, o.z, o.identified, o.wrong, o.found, o.visible,
-                o.false_spots, o.warnings, o.seconds);
+    if (o.projector) {
+      ++projector;
+      projector_within += std::abs(o.z_projector) <= 2.0 ? 1 : 0;
+      sum_zp2 += o.z_projector * o.z_projector;
+    }
+    std::printf("seed %d: s %.6f +- %.4f, s_true %.6f, z %+.2f; projector s %.6f +- %.5f, z %+.2f; "
+                "%d identified, %d wrong; recall %d/%d, false spots %d; %d warnings; %.1f s\n",
+                k, o.s, o.u, o.s_true, o.z, o.s_projector, o.u_projector, o.z_projector,
+                o.identified, o.wrong, o.found, o.visible, o.false_spots, o.warnings, o.seconds);
   }
   ASSERT_GE(measured, 2);
   const double rms_z = std::sqrt(sum_z2 / measured);
@@ -167,6 +184,10 @@ TEST(HarderLabCoverage, ScaleWithinItsUncertaintyAndNoWrongSpot) {
               "%d wrong assignments; recall %d/%d (%.2f%%), %d false spots; %.1f s per scene\n",
               measured, n, within, 100.0 * within / measured, rms_z, wrong, found, visible,
               100.0 * found / visible, false_spots, seconds / measured);
+  const double rms_zp = projector > 0 ? std::sqrt(sum_zp2 / projector) : 0.0;
+  std::printf("  the scale inside the adjustment: %d scenes, |z| <= 2 in %d (%.1f%%), RMS z %.3f\n",
+              projector, projector_within, projector > 0 ? 100.0 * projector_within / projector : 0.0,
+              rms_zp);
   EXPECT_EQ(measured, n);
   EXPECT_EQ(wrong, 0);
   EXPECT_GE(found, 0.98 * visible);
@@ -177,6 +198,11 @@ TEST(HarderLabCoverage, ScaleWithinItsUncertaintyAndNoWrongSpot) {
   EXPECT_GE(within, static_cast<int>(std::floor(0.75 * measured)));
   EXPECT_GE(rms_z, 0.5);
   EXPECT_LE(rms_z, 1.8);
+  // The projector adjustment ran on every scene; its u(s) is not yet
+  // honest on this lab (docs/multiview.md, "The variance factor"): only a
+  // gross failure is caught here.
+  EXPECT_EQ(projector, measured);
+  EXPECT_LE(rms_zp, 3.0);
 }
 
 // Noise-free geometry (no speckle, no sensor noise), everything else of the

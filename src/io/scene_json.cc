@@ -57,7 +57,7 @@ class SceneReader : public json_internal::JsonReader {
     OPL_RETURN_IF_ERROR(CheckKeys(root, "",
                                   {"format", "version", "description", "cameras", "tags", "frame",
                                    "artifact", "module", "spots", "image", "seed", "shots",
-                                   "provenance"}));
+                                   "module_placements", "check_lengths", "provenance"}));
     if (const json* d = Find(root, "description")) {
       std::string ignored;
       OPL_RETURN_IF_ERROR(String(*d, "description", &ignored));
@@ -156,6 +156,41 @@ class SceneReader : public json_internal::JsonReader {
         return Error("seed", "expected an integer >= 0, got " + Describe(*s));
       }
       scene->seed = s->get<uint64_t>();
+    }
+    if (const json* p = Find(root, "module_placements")) {
+      OPL_RETURN_IF_ERROR(CheckArray(*p, "module_placements"));
+      for (size_t k = 0; k < p->size(); ++k) {
+        const std::string path = Index("module_placements", k);
+        const json& e = (*p)[k];
+        OPL_RETURN_IF_ERROR(CheckObject(e, path));
+        OPL_RETURN_IF_ERROR(CheckKeys(e, path, {"name", "rotation_deg", "translation_mm"}));
+        SceneModulePlacement placement;
+        OPL_RETURN_IF_ERROR(RequiredString(e, path, "name", &placement.name));
+        if (const json* r = Find(e, "rotation_deg")) {
+          OPL_RETURN_IF_ERROR(Vec3(*r, Join(path, "rotation_deg"), &placement.rotation_deg));
+        }
+        if (const json* t = Find(e, "translation_mm")) {
+          OPL_RETURN_IF_ERROR(Vec3(*t, Join(path, "translation_mm"), &placement.translation_mm));
+        }
+        scene->module_placements.push_back(std::move(placement));
+      }
+    }
+    if (const json* c = Find(root, "check_lengths")) {
+      OPL_RETURN_IF_ERROR(CheckArray(*c, "check_lengths"));
+      for (size_t k = 0; k < c->size(); ++k) {
+        const std::string path = Index("check_lengths", k);
+        const json& e = (*c)[k];
+        OPL_RETURN_IF_ERROR(CheckObject(e, path));
+        OPL_RETURN_IF_ERROR(
+            CheckKeys(e, path, {"name", "tag_1", "tag_2", "length_mm", "length_sigma_mm"}));
+        SceneCheckLength length;
+        OPL_RETURN_IF_ERROR(RequiredString(e, path, "name", &length.name));
+        OPL_RETURN_IF_ERROR(RequiredInteger(e, path, "tag_1", &length.tag_1));
+        OPL_RETURN_IF_ERROR(RequiredInteger(e, path, "tag_2", &length.tag_2));
+        OPL_RETURN_IF_ERROR(RequiredNumber(e, path, "length_mm", &length.length_mm));
+        OPL_RETURN_IF_ERROR(OptionalNumber(e, path, "length_sigma_mm", &length.length_sigma_mm));
+        scene->check_lengths.push_back(std::move(length));
+      }
     }
     OPL_RETURN_IF_ERROR(Require(root, "", "shots", &v));
     OPL_RETURN_IF_ERROR(CheckArray(*v, "shots"));
@@ -271,7 +306,7 @@ class SceneReader : public json_internal::JsonReader {
 
   Status ParseShot(const json& s, const std::string& path, SceneShot* shot) const {
     OPL_RETURN_IF_ERROR(CheckObject(s, path));
-    OPL_RETURN_IF_ERROR(CheckKeys(s, path, {"camera", "file", "lasers", "slice"}));
+    OPL_RETURN_IF_ERROR(CheckKeys(s, path, {"camera", "file", "lasers", "slice", "placement"}));
     OPL_RETURN_IF_ERROR(RequiredString(s, path, "camera", &shot->camera));
     OPL_RETURN_IF_ERROR(RequiredString(s, path, "file", &shot->file));
     if (const json* l = Find(s, "lasers")) {
@@ -284,6 +319,10 @@ class SceneReader : public json_internal::JsonReader {
       }
     }
     OPL_RETURN_IF_ERROR(OptionalInteger(s, path, "slice", &shot->slice));
+    if (const json* p = Find(s, "placement")) {
+      OPL_RETURN_IF_ERROR(String(*p, Join(path, "placement"), &shot->placement));
+      if (shot->placement.empty()) return Error(Join(path, "placement"), "must not be empty");
+    }
     return Status::Ok();
   }
 
@@ -331,11 +370,13 @@ std::string FormatSceneTruthJson(const SceneRenderer& renderer,
   root["tags"] = tags;
   ojson spots = ojson::array();
   for (const SceneSpotTruth& s : renderer.spots()) {
-    spots.push_back({{"source", s.source},
-                     {"beam", s.beam},
-                     {"slice", s.slice},
-                     {"point_mm", vec(s.point_in_scene)},
-                     {"normal", vec(s.normal_in_scene)}});
+    ojson spot = {{"source", s.source},
+                  {"beam", s.beam},
+                  {"slice", s.slice},
+                  {"point_mm", vec(s.point_in_scene)},
+                  {"normal", vec(s.normal_in_scene)}};
+    if (!s.placement.empty()) spot["placement"] = s.placement;
+    spots.push_back(spot);
   }
   root["spots"] = spots;
   ojson shot_list = ojson::array();
@@ -367,6 +408,7 @@ std::string FormatSceneTruthJson(const SceneRenderer& renderer,
                        {"slice", shot.slice},
                        {"tags", tag_views},
                        {"spots", spot_views}};
+    if (!shot.placement.empty()) shot_json["placement"] = shot.placement;
     if (!r.distractors.empty()) {
       ojson distractors = ojson::array();
       for (const Distractor& d : r.distractors) {
@@ -422,10 +464,30 @@ std::string FormatMeasurementSceneJson(const Scene& scene, const std::string& de
                         {"length_mm", scene.artifact->length_mm},
                         {"length_sigma_mm", scene.artifact->length_sigma_mm}};
   }
+  if (!scene.module_placements.empty()) {
+    root["module_placements"] = ojson::array();
+    for (const SceneModulePlacement& p : scene.module_placements) {
+      root["module_placements"].push_back(
+          {{"name", p.name},
+           {"rotation_deg", {p.rotation_deg.x(), p.rotation_deg.y(), p.rotation_deg.z()}},
+           {"translation_mm", {p.translation_mm.x(), p.translation_mm.y(), p.translation_mm.z()}}});
+    }
+  }
+  if (!scene.check_lengths.empty()) {
+    root["check_lengths"] = ojson::array();
+    for (const SceneCheckLength& c : scene.check_lengths) {
+      root["check_lengths"].push_back({{"name", c.name},
+                                       {"tag_1", c.tag_1},
+                                       {"tag_2", c.tag_2},
+                                       {"length_mm", c.length_mm},
+                                       {"length_sigma_mm", c.length_sigma_mm}});
+    }
+  }
   root["shots"] = ojson::array();
   for (const SceneShot& s : scene.shots) {
-    root["shots"].push_back(
-        {{"camera", s.camera}, {"file", s.file}, {"lasers", s.lasers}, {"slice", s.slice}});
+    ojson shot = {{"camera", s.camera}, {"file", s.file}, {"lasers", s.lasers}, {"slice", s.slice}};
+    if (!s.placement.empty()) shot["placement"] = s.placement;
+    root["shots"].push_back(shot);
   }
   return root.dump(2) + "\n";
 }

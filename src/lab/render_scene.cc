@@ -84,14 +84,25 @@ Result<SceneRenderer> SceneRenderer::Create(const Scene& scene) {
   std::set<int> slices;
   for (const SceneShot& shot : scene.shots) slices.insert(shot.slice);
   const ModuleDesign& module = *scene.module;
+  std::vector<SceneModulePlacement> placements = scene.module_placements;
+  if (placements.empty()) placements.emplace_back();  // the module as designed, unnamed
+  std::vector<BeamPattern> patterns;
   for (const SourceDesign& source : module.sources) {
     Result<BeamPattern> pattern = MakePattern(source);
     if (!pattern.ok()) {
       return Status(pattern.status().code(), "module: source '" + source.name + "': " +
                                                  pattern.status().message());
     }
-    const Eigen::Matrix3d R = source.scene_from_source.RotationMatrix();
-    const Eigen::Vector3d origin = source.scene_from_source.translation;
+    patterns.push_back(std::move(*pattern));
+  }
+  for (const SceneModulePlacement& placement : placements) {
+  const Rigid3d scene_from_design = placement.SceneFromDesign(module);
+  for (size_t src = 0; src < module.sources.size(); ++src) {
+    const SourceDesign& source = module.sources[src];
+    const BeamPattern* pattern = &patterns[src];
+    const Rigid3d scene_from_source = scene_from_design * source.scene_from_source;
+    const Eigen::Matrix3d R = scene_from_source.RotationMatrix();
+    const Eigen::Vector3d origin = scene_from_source.translation;
     for (int slice : slices) {
       for (const Beam& beam : pattern->beams()) {
         const Eigen::Vector3d direction = (R * beam.DirectionInSource()).normalized();
@@ -99,6 +110,7 @@ Result<SceneRenderer> SceneRenderer::Create(const Scene& scene) {
         if (!hit) continue;
         SceneSpotTruth spot;
         spot.source = source.name;
+        spot.placement = placement.name;
         spot.beam = beam.id;
         spot.slice = slice;
         spot.point_in_scene = *hit;
@@ -107,6 +119,7 @@ Result<SceneRenderer> SceneRenderer::Create(const Scene& scene) {
         r.spots_.push_back(spot);
       }
     }
+  }
   }
   if (!scene.image.wall_texture.empty()) {
     Result<cv::Mat> texture = ReadWallTexture(scene.image.wall_texture);
@@ -208,7 +221,10 @@ Result<RenderedShot> SceneRenderer::RenderShot(int shot_index) const {
   std::vector<size_t> view_of_rendered;
   for (size_t k = 0; k < spots_.size(); ++k) {
     const SceneSpotTruth& spot = spots_[k];
-    if (spot.slice != shot.slice || lit.count(spot.source) == 0) continue;
+    if (spot.slice != shot.slice || spot.placement != shot.placement ||
+        lit.count(spot.source) == 0) {
+      continue;
+    }
     SpotView view;
     view.spot_index = static_cast<int>(k);
     if (!camera.Project(spot.point_in_scene, &view.center_px)) {

@@ -6,6 +6,7 @@
 #include <string>
 
 #include "opl/core/format.h"
+#include "opl/geometry/rotation.h"
 
 namespace opl {
 namespace {
@@ -190,6 +191,46 @@ Status Scene::Validate() const {
   }
   OPL_RETURN_IF_ERROR(CheckLooks(spots, image));
 
+  std::map<std::string, size_t> placement_index;
+  for (size_t k = 0; k < module_placements.size(); ++k) {
+    const std::string path = "module_placements[" + std::to_string(k) + "]";
+    const SceneModulePlacement& p = module_placements[k];
+    if (p.name.empty()) return Bad(path + ".name", "must not be empty");
+    const auto [it, inserted] = placement_index.emplace(p.name, k);
+    if (!inserted) {
+      return Bad(path + ".name", "duplicate placement name '" + p.name + "' (also module_placements[" +
+                                     std::to_string(it->second) + "])");
+    }
+    if (!p.rotation_deg.allFinite() || p.rotation_deg.cwiseAbs().maxCoeff() > 360.0) {
+      return Bad(path + ".rotation_deg", "each angle must be finite and within [-360, 360] deg");
+    }
+    if (!p.translation_mm.allFinite() || p.translation_mm.cwiseAbs().maxCoeff() > 1e9) {
+      return Bad(path + ".translation_mm", "must be finite and within 1e9 mm of the origin");
+    }
+  }
+  std::map<std::string, size_t> check_index;
+  for (size_t k = 0; k < check_lengths.size(); ++k) {
+    const std::string path = "check_lengths[" + std::to_string(k) + "]";
+    const SceneCheckLength& c = check_lengths[k];
+    if (c.name.empty()) return Bad(path + ".name", "must not be empty");
+    const auto [it, inserted] = check_index.emplace(c.name, k);
+    if (!inserted) {
+      return Bad(path + ".name", "duplicate check length name '" + c.name + "' (also check_lengths[" +
+                                     std::to_string(it->second) + "])");
+    }
+    OPL_RETURN_IF_ERROR(check_tag(path + ".tag_1", c.tag_1));
+    OPL_RETURN_IF_ERROR(check_tag(path + ".tag_2", c.tag_2));
+    if (c.tag_1 == c.tag_2) {
+      return Bad(path + ".tag_2", "must differ from tag_1 (" + std::to_string(c.tag_1) + ")");
+    }
+    if (!(Finite(c.length_mm) && c.length_mm > 0.0)) {
+      return BadNumber(path + ".length_mm", c.length_mm, "must be finite and > 0");
+    }
+    if (!(Finite(c.length_sigma_mm) && c.length_sigma_mm >= 0.0)) {
+      return BadNumber(path + ".length_sigma_mm", c.length_sigma_mm, "must be finite and >= 0");
+    }
+  }
+
   if (shots.empty()) return Bad("shots", "at least one shot is needed");
   std::map<std::string, size_t> file_index;
   for (size_t k = 0; k < shots.size(); ++k) {
@@ -215,6 +256,17 @@ Status Scene::Validate() const {
         for (const SourceDesign& src : module->sources) names += (names.empty() ? "" : ", ") + src.name;
         return Bad(field, "no source named '" + s.lasers[l] + "' in the module (it has " + names + ")");
       }
+    }
+    if (!s.placement.empty() && placement_index.count(s.placement) == 0) {
+      return Bad(path + ".placement",
+                 module_placements.empty()
+                     ? "'" + s.placement + "': the scene lists no module_placements"
+                     : "no module placement named '" + s.placement + "'");
+    }
+    if (s.placement.empty() && !module_placements.empty() && !s.lasers.empty()) {
+      return Bad(path + ".placement",
+                 "missing: the scene lists module_placements, so a shot with a laser on must "
+                 "name the placement it shows");
     }
     if (s.slice < 0) return Bad(path + ".slice", std::to_string(s.slice) + ": must be >= 0");
     if (module && s.slice >= module->surface.num_slices()) {
@@ -245,6 +297,22 @@ const SceneCamera* Scene::FindCamera(const std::string& name) const {
     if (c.name == name) return &c;
   }
   return nullptr;
+}
+
+int Scene::FindModulePlacement(const std::string& name) const {
+  for (size_t k = 0; k < module_placements.size(); ++k) {
+    if (module_placements[k].name == name) return static_cast<int>(k);
+  }
+  return -1;
+}
+
+Rigid3d SceneModulePlacement::SceneFromDesign(const ModuleDesign& design) const {
+  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+  for (const SourceDesign& s : design.sources) centroid += s.scene_from_source.translation;
+  if (!design.sources.empty()) centroid /= static_cast<double>(design.sources.size());
+  const Eigen::Matrix3d R = RotationFromXyzAnglesRad(rotation_deg * (M_PI / 180.0));
+  // x -> R (x - c) + c + t
+  return Rigid3d(R, centroid - R * centroid + translation_mm);
 }
 
 const SceneTag* Scene::FindTag(int id) const {

@@ -157,6 +157,18 @@ Status FrontEndRun::MoveToSceneFrame() {
     const Eigen::Vector3d c = center_of(id, &cov);
     result.tag_centers[id] = *frame * c;
     result.tag_center_covariances[id] = r * cov * r.transpose();
+    if (adjusted->point_own_covariances.empty() || adjusted->point_shared_factors.empty()) continue;
+    Eigen::Matrix3d own = Eigen::Matrix3d::Zero();
+    Eigen::MatrixXd shared;
+    for (int k = 0; k < 4; ++k) {
+      const size_t p = static_cast<size_t>(first + k);
+      own += adjusted->point_own_covariances[p] / 16.0;
+      const Eigen::MatrixXd& K = adjusted->point_shared_factors[p];
+      if (k == 0) shared = Eigen::MatrixXd::Zero(3, K.cols());
+      shared += K / 4.0;
+    }
+    result.tag_center_own_covariances[id] = r * own * r.transpose();
+    result.tag_center_shared_factors[id] = r * shared;
   }
   for (size_t s = 0; s < spot_group.size(); ++s) {
     const size_t p = static_cast<size_t>(first_spot_point) + s;

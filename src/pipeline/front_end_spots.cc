@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <tuple>
 #include <string>
 
 #include "opl/core/format.h"
@@ -49,17 +50,17 @@ double ExtraVarianceForUnitFactor(const std::vector<Eigen::Vector2d>& residuals,
 void FrontEndRun::GroupShots() {
   // 5. Groups and matching.
   {
-    std::map<std::pair<std::vector<std::string>, int>, int> group_of_key;
+    std::map<std::tuple<std::vector<std::string>, int, std::string>, int> group_of_key;
     for (int i = 0; i < num_images; ++i) {
       const SceneShot& shot = scene.shots[static_cast<size_t>(i)];
       if (shot.lasers.empty()) continue;  // a laser-off shot: tags and dark frame only
       std::vector<std::string> lasers = shot.lasers;
       std::sort(lasers.begin(), lasers.end());
-      const auto key = std::make_pair(lasers, shot.slice);
+      const auto key = std::make_tuple(lasers, shot.slice, shot.placement);
       auto found = group_of_key.find(key);
       if (found == group_of_key.end()) {
         found = group_of_key.emplace(key, static_cast<int>(result.groups.size())).first;
-        result.groups.push_back({lasers, shot.slice, {}});
+        result.groups.push_back({lasers, shot.slice, shot.placement, {}});
       }
       result.groups[static_cast<size_t>(found->second)].images.push_back(i);
     }

@@ -108,6 +108,7 @@ std::string FrontEndResult::ToText() const {
       out << (i ? "," : "") << groups[g].lasers[i];
     }
     if (groups[g].lasers.empty()) out << "(none)";
+    if (!groups[g].placement.empty()) out << ", placement " << groups[g].placement;
     out << ", slice " << groups[g].slice << ", " << groups[g].images.size() << " images, " << n
         << " 3D spots\n";
   }

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <map>
+#include <tuple>
 
 #include <nlohmann/json.hpp>
 
@@ -82,8 +83,11 @@ Result<MeasureReport> MeasureScale(const ModuleCalibration& calibration,
   }
 
   // Check every spot against the calibration, then group by source.
-  std::map<std::pair<std::string, int>, size_t> first_index;  // (source, beam) -> spot
-  std::map<std::string, std::vector<SpotObservation>> by_source;
+  // (placement, source, beam) -> spot
+  std::map<std::tuple<std::string, std::string, int>, size_t> first_index;
+  // (placement, source) -> its observations; placements in order of first appearance
+  std::map<std::pair<std::string, std::string>, std::vector<SpotObservation>> by_source;
+  std::vector<std::string> placements;
   for (size_t i = 0; i < spots.size(); ++i) {
     const Spot& spot = spots[i];
     const std::string where = spot.where.empty() ? "spot " + std::to_string(i + 1) : spot.where;
@@ -100,19 +104,24 @@ Result<MeasureReport> MeasureScale(const ModuleCalibration& calibration,
           " in the calibration (" + std::to_string(n) + " x " + std::to_string(n) + " grid, " +
           std::to_string(source->pattern.beams().size()) + " beams calibrated)");
     }
-    auto [it, inserted] = first_index.emplace(std::make_pair(spot.source, beam_id), i);
+    auto [it, inserted] = first_index.emplace(std::make_tuple(spot.placement, spot.source, beam_id), i);
     if (!inserted) {
       const Spot& first = spots[it->second];
       const std::string first_where =
           first.where.empty() ? "spot " + std::to_string(it->second + 1) : first.where;
-      return Status::InvalidArgument(where + ": duplicate spot of source " + QuoteForMessage(spot.source) +
-                                     " beam " + std::to_string(beam_id) + " (also at " +
-                                     first_where + ")");
+      return Status::InvalidArgument(
+          where + ": duplicate spot of source " + QuoteForMessage(spot.source) + " beam " +
+          std::to_string(beam_id) +
+          (spot.placement.empty() ? "" : " at placement " + QuoteForMessage(spot.placement)) +
+          " (also at " + first_where + ")");
     }
     if (!spot.observation.point_in_scene.allFinite()) {
       return Status::InvalidArgument(where + ": point is not finite");
     }
-    by_source[spot.source].push_back(spot.observation);
+    if (std::find(placements.begin(), placements.end(), spot.placement) == placements.end()) {
+      placements.push_back(spot.placement);
+    }
+    by_source[{spot.placement, spot.source}].push_back(spot.observation);
   }
 
   MeasureReport report;
@@ -121,23 +130,30 @@ Result<MeasureReport> MeasureScale(const ModuleCalibration& calibration,
       identification ? " (identification: " + IdentificationBrief(*identification) + ")" : "";
   std::vector<LocatedOrigin> located;
   for (const SourceCalibration& source : calibration.sources) {
-    auto group = by_source.find(source.name);
-    if (group == by_source.end()) {
-      report.sources_without_spots.push_back(source.name);
-      continue;
+    bool any = false;
+    for (const std::string& placement : placements) any = any || by_source.count({placement, source.name});
+    if (!any) report.sources_without_spots.push_back(source.name);
+  }
+  for (const std::string& placement : placements) {
+    for (const SourceCalibration& source : calibration.sources) {
+      auto group = by_source.find({placement, source.name});
+      if (group == by_source.end()) continue;
+      Result<LocateResult> result = LocateSource(source.pattern, group->second, options.locate);
+      if (!result.ok()) {
+        return Status(result.status().code(),
+                      "source " + QuoteForMessage(source.name) +
+                          (placement.empty() ? "" : " at placement " + QuoteForMessage(placement)) +
+                          ": " + result.status().message() + identified_suffix);
+      }
+      LocatedOrigin origin;
+      origin.name = source.name;
+      origin.placement = placement;
+      origin.origin_in_scene = result->scene_from_source.translation;
+      origin.origin_covariance = result->origin_covariance;
+      located.push_back(origin);
+      report.sources.emplace_back(source.name, std::move(result).value());
+      report.source_placements.push_back(placement);
     }
-    Result<LocateResult> result = LocateSource(source.pattern, group->second, options.locate);
-    if (!result.ok()) {
-      return Status(result.status().code(), "source " + QuoteForMessage(source.name) +
-                                                ": " + result.status().message() +
-                                                identified_suffix);
-    }
-    LocatedOrigin origin;
-    origin.name = source.name;
-    origin.origin_in_scene = result->scene_from_source.translation;
-    origin.origin_covariance = result->origin_covariance;
-    located.push_back(origin);
-    report.sources.emplace_back(source.name, std::move(result).value());
   }
   if (located.empty()) {
     return Status::NoSolution("no spots: no source could be located" + identified_suffix);
@@ -147,7 +163,8 @@ Result<MeasureReport> MeasureScale(const ModuleCalibration& calibration,
   if (!scale.ok()) {
     std::string located_names;
     for (const LocatedOrigin& o : located) {
-      located_names += (located_names.empty() ? "" : ", ") + o.name;
+      located_names += (located_names.empty() ? "" : ", ") + o.name +
+                       (o.placement.empty() ? "" : " at " + o.placement);
     }
     return Status(scale.status().code(), scale.status().message() + " (located: " +
                                              located_names + ")" + identified_suffix);
@@ -173,9 +190,12 @@ std::string MeasureReport::ToText() const {
       out += "\n";
     }
   }
-  for (const auto& [name, r] : sources) {
+  for (size_t k = 0; k < sources.size(); ++k) {
+    const auto& [name, r] = sources[k];
     const std::vector<int> outliers = r.OutlierBeamIds();
-    out += "Source " + name + ": " + std::to_string(r.num_spots) + " spots, " +
+    const std::string placement = k < source_placements.size() ? source_placements[k] : "";
+    out += "Source " + name + (placement.empty() ? "" : " at placement " + placement) + ": " +
+           std::to_string(r.num_spots) + " spots, " +
            std::to_string(r.num_inliers) + " used, " + std::to_string(outliers.size()) +
            " outliers" + (outliers.empty() ? "" : " (beams " + JoinInts(outliers) + ")") + "\n";
     out += "  origin          " + FormatTriple("%.6f", r.scene_from_source.translation) +
@@ -195,7 +215,8 @@ std::string MeasureReport::ToText() const {
   }
   out += "Lengths (photo in scene units, cal in mm, s_ij in mm per scene unit):\n";
   for (const LengthScale& l : scale.lengths) {
-    out += "  " + l.from + "-" + l.to + ": photo " + FormatPrintf("%.6f", l.photo) + " +- " +
+    out += "  " + l.from + "-" + l.to + (l.placement.empty() ? "" : " at " + l.placement) +
+           ": photo " + FormatPrintf("%.6f", l.photo) + " +- " +
            FormatPrintf("%.6f", l.u_photo) + ", cal " + FormatPrintf("%.6f", l.cal_mm) + " +- " +
            FormatPrintf("%.6f", l.u_cal_mm) + ", s_ij " + FormatPrintf("%.9f", l.scale) + " +- " +
            FormatPrintf("%.9f", l.u_scale) + "\n";
@@ -228,9 +249,13 @@ std::string MeasureReport::ToJson() const {
                   {"cal", "mm"},
                   {"scale_factor", "mm per scene unit"}};
   ordered_json source_array = ordered_json::array();
-  for (const auto& [name, r] : sources) {
+  for (size_t k = 0; k < sources.size(); ++k) {
+    const auto& [name, r] = sources[k];
     ordered_json s;
     s["name"] = name;
+    if (k < source_placements.size() && !source_placements[k].empty()) {
+      s["placement"] = source_placements[k];
+    }
     s["origin"] = VectorJson(r.scene_from_source.translation);
     s["origin_cov"] = MatrixJson(r.origin_covariance);
     s["origin_std"] = VectorJson(StdDevs(r.origin_covariance));
@@ -264,14 +289,15 @@ std::string MeasureReport::ToJson() const {
   }
   ordered_json lengths = ordered_json::array();
   for (const LengthScale& l : scale.lengths) {
-    lengths.push_back({{"from", l.from},
-                       {"to", l.to},
-                       {"photo", l.photo},
-                       {"u_photo", l.u_photo},
-                       {"cal", l.cal_mm},
-                       {"u_cal", l.u_cal_mm},
-                       {"scale", l.scale},
-                       {"u_scale", l.u_scale}});
+    ordered_json length = {{"from", l.from}, {"to", l.to}};
+    if (!l.placement.empty()) length["placement"] = l.placement;
+    length["photo"] = l.photo;
+    length["u_photo"] = l.u_photo;
+    length["cal"] = l.cal_mm;
+    length["u_cal"] = l.u_cal_mm;
+    length["scale"] = l.scale;
+    length["u_scale"] = l.u_scale;
+    lengths.push_back(std::move(length));
   }
   doc["lengths"] = std::move(lengths);
   doc["scale_factor"] = scale.scale_factor;

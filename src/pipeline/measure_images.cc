@@ -5,6 +5,7 @@
 #include <cmath>
 #include <map>
 #include <set>
+#include <tuple>
 #include <sstream>
 
 #include <nlohmann/json.hpp>
@@ -71,11 +72,12 @@ std::string ImageMeasureReport::ToJson() const {
       ++spots_3d;
       assigned += spots[k].assigned() ? 1 : 0;
     }
-    groups.push_back({{"lasers", front_end.groups[g].lasers},
-                      {"slice", front_end.groups[g].slice},
-                      {"images", front_end.groups[g].images},
-                      {"spots_3d", spots_3d},
-                      {"assigned", assigned}});
+    ordered_json group = {{"lasers", front_end.groups[g].lasers}, {"slice", front_end.groups[g].slice}};
+    if (!front_end.groups[g].placement.empty()) group["placement"] = front_end.groups[g].placement;
+    group["images"] = front_end.groups[g].images;
+    group["spots_3d"] = spots_3d;
+    group["assigned"] = assigned;
+    groups.push_back(std::move(group));
   }
   doc["exposure_groups"] = groups;
   doc["frame_tags"] = front_end.frame_tags;
@@ -136,13 +138,14 @@ Result<ImageMeasureReport> MeasureScaleFromFrontEnd(FrontEndResult front_end,
   // exposures are different point sets (two grids shot separately may
   // interleave in space, which a joint identification would have to
   // untangle for nothing).
-  std::set<std::pair<std::string, int>> seen;
+  std::set<std::tuple<std::string, std::string, int>> seen;  // (placement, source, beam)
   for (size_t g = 0; g < fe.groups.size(); ++g) {
     const ExposureGroup& group = fe.groups[g];
     std::vector<size_t> members;
     std::vector<Spot> group_spots;
     for (size_t k = 0; k < fe.spots.size(); ++k) {
       if (fe.spots[k].group != static_cast<int>(g)) continue;
+      report.spots[k].placement = group.placement;
       Spot spot = report.spots[k];
       // One laser on: its spots can only be that source's.
       if (group.lasers.size() == 1 && calibration.FindSource(group.lasers[0]) != nullptr) {
@@ -187,7 +190,7 @@ Result<ImageMeasureReport> MeasureScaleFromFrontEnd(FrontEndResult front_end,
                                             ", which was off in its images: not used");
         continue;
       }
-      if (!seen.insert({name, beam}).second) {
+      if (!seen.insert({group.placement, name, beam}).second) {
         report.metadata_conflicts.push_back(spot.where + " is source " + QuoteForMessage(name) + " beam " +
                                             std::to_string(beam) +
                                             " again (another exposure group has it): not used");
@@ -236,6 +239,7 @@ Result<ImageMeasureReport> MeasureScaleFromFrontEnd(FrontEndResult front_end,
     ScaleResult& scale = measure->scale;
     double shared2 = 0.0;
     std::vector<double> photo2(scale.lengths.size(), 0.0), scale2(scale.lengths.size(), 0.0);
+    report.scale_shared_gradient = Eigen::VectorXd::Zero(m);
     for (Eigen::Index k = 0; k < m; ++k) {
       std::array<ScaleResult, 2> moved;
       for (int side = 0; side < 2; ++side) {
@@ -260,6 +264,7 @@ Result<ImageMeasureReport> MeasureScaleFromFrontEnd(FrontEndResult front_end,
       }
       const double g = 0.5 * (moved[0].scale_factor - moved[1].scale_factor);
       shared2 += g * g;
+      report.scale_shared_gradient[k] = g;
       for (size_t l = 0; l < scale.lengths.size(); ++l) {
         const double gp = 0.5 * (moved[0].lengths[l].photo - moved[1].lengths[l].photo);
         const double gs = 0.5 * (moved[0].lengths[l].scale - moved[1].lengths[l].scale);

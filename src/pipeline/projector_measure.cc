@@ -44,38 +44,50 @@ Result<ProjectorAdjustmentData> ProjectorDataFromTwoStep(const ImageMeasureRepor
     q.point_in_scene *= s0;
     data.bundle.points.push_back(q);
   }
-  // The module's start pose from the first located source.
+  // One placement per module placement of the two-step's located sources
+  // (order of first appearance), each started from its first located source.
   const Eigen::Vector3d centre = data.ModuleOriginInCalibration();
-  const auto& [first_name, first_located] = two_step.measure.sources.front();
-  const SourceCalibration* first = calibration.FindSource(first_name);
-  if (first == nullptr) {
-    return Status::InvalidArgument("scale_in_adjustment: located source '" + first_name +
-                                   "' is not in the calibration");
+  const MeasureReport& measured = two_step.measure;
+  std::map<std::string, int> placement_index;
+  std::map<std::pair<std::string, std::string>, std::set<int>> outliers;  // (placement, source)
+  for (size_t k = 0; k < measured.sources.size(); ++k) {
+    const auto& [name, located] = measured.sources[k];
+    const std::string placement_name =
+        k < measured.source_placements.size() ? measured.source_placements[k] : "";
+    for (int b : located.OutlierBeamIds()) outliers[{placement_name, name}].insert(b);
+    if (placement_index.count(placement_name)) continue;
+    const SourceCalibration* first = calibration.FindSource(name);
+    if (first == nullptr) {
+      return Status::InvalidArgument("scale_in_adjustment: located source '" + name +
+                                     "' is not in the calibration");
+    }
+    Rigid3d scene_from_source = located.scene_from_source;
+    scene_from_source.translation *= s0;
+    const Rigid3d module_from_source(first->calibration_from_source.rotation,
+                                     first->calibration_from_source.translation - centre);
+    ProjectorPlacement placement;
+    placement.name = placement_name.empty() ? "all shots" : placement_name;
+    placement.scene_from_module = scene_from_source * module_from_source.Inverse();
+    placement_index[placement_name] = static_cast<int>(data.placements.size());
+    data.placements.push_back(placement);
   }
-  Rigid3d scene_from_source = first_located.scene_from_source;
-  scene_from_source.translation *= s0;
-  const Rigid3d module_from_source(first->calibration_from_source.rotation,
-                                   first->calibration_from_source.translation - centre);
-  ProjectorPlacement placement;
-  placement.name = "all shots";
-  placement.scene_from_module = scene_from_source * module_from_source.Inverse();
-  data.placements.push_back(placement);
 
-  std::map<std::string, std::set<int>> outliers;
-  for (const auto& [name, located] : two_step.measure.sources) {
-    for (int b : located.OutlierBeamIds()) outliers[name].insert(b);
-  }
   std::vector<int> spot_of_point(adj.points.size(), -1);
   for (size_t k = 0; k < two_step.spots.size(); ++k) {
     const Spot& spot = two_step.spots[k];
-    if (!spot.assigned() || outliers[spot.source].count(spot.observation.beam_id)) continue;
+    if (!spot.assigned() || outliers[{spot.placement, spot.source}].count(spot.observation.beam_id)) {
+      continue;
+    }
+    const auto placement = placement_index.find(spot.placement);
+    if (placement == placement_index.end()) continue;  // its source was not located there
     const SourceCalibration* src = calibration.FindSource(spot.source);
     if (src == nullptr || src->pattern.Find(spot.observation.beam_id) == nullptr) continue;
     const Rigid3d scene_from_src =
-        placement.scene_from_module *
+        data.placements[static_cast<size_t>(placement->second)].scene_from_module *
         Rigid3d(src->calibration_from_source.rotation, src->calibration_from_source.translation - centre);
     const Eigen::Vector3d beam = scene_from_src.rotation * src->pattern.DirectionInSource(spot.observation.beam_id);
     ProjectorSpot ps;
+    ps.placement = placement->second;
     ps.source = spot.source;
     ps.beam_id = spot.observation.beam_id;
     ps.depth_mm = std::max(1.0, beam.dot(s0 * spot.observation.point_in_scene - scene_from_src.translation));

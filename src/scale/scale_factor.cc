@@ -1,5 +1,6 @@
 #include "opl/scale/scale_factor.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include <Eigen/Cholesky>
@@ -8,12 +9,18 @@ namespace opl {
 
 Result<ScaleResult> ComputeScaleFactor(const ModuleCalibration& calibration,
                                        const std::vector<LocatedOrigin>& located) {
-  auto find = [&](const std::string& name) -> int {
+  auto find = [&](const std::string& name, const std::string& placement) -> int {
     for (size_t i = 0; i < located.size(); ++i) {
-      if (located[i].name == name) return static_cast<int>(i);
+      if (located[i].name == name && located[i].placement == placement) return static_cast<int>(i);
     }
     return -1;
   };
+  std::vector<std::string> placements;  // order of first appearance
+  for (const LocatedOrigin& o : located) {
+    if (std::find(placements.begin(), placements.end(), o.placement) == placements.end()) {
+      placements.push_back(o.placement);
+    }
+  }
   for (const LocatedOrigin& o : located) {
     if (!o.origin_in_scene.allFinite() || !o.origin_covariance.allFinite()) {
       return Status::InvalidArgument("located source '" + o.name + "': origin is not finite");
@@ -25,9 +32,11 @@ Result<ScaleResult> ComputeScaleFactor(const ModuleCalibration& calibration,
     const Separation* sep;
   };
   std::vector<Pair> pairs;
-  for (const Separation& sep : calibration.separations) {
-    const int i = find(sep.from), j = find(sep.to);
-    if (i >= 0 && j >= 0) pairs.push_back({i, j, &sep});
+  for (const std::string& placement : placements) {
+    for (const Separation& sep : calibration.separations) {
+      const int i = find(sep.from, placement), j = find(sep.to, placement);
+      if (i >= 0 && j >= 0) pairs.push_back({i, j, &sep});
+    }
   }
   if (pairs.empty()) {
     return Status::NoSolution("no calibrated separation joins two located sources");
@@ -54,6 +63,7 @@ Result<ScaleResult> ComputeScaleFactor(const ModuleCalibration& calibration,
     LengthScale ls;
     ls.from = pairs[p].sep->from;
     ls.to = pairs[p].sep->to;
+    ls.placement = located[pairs[p].i].placement;
     ls.photo = L;
     ls.cal_mm = pairs[p].sep->length_mm;
     ls.u_cal_mm = pairs[p].sep->u_length_mm;
@@ -62,14 +72,19 @@ Result<ScaleResult> ComputeScaleFactor(const ModuleCalibration& calibration,
     s_vec(p) = ls.scale;
   }
   const Eigen::MatrixXd cov_L = J * C * J.transpose();
-  // s_p = cal_p / L_p:  ds/dL = -s/L;  calibrated lengths independent.
+  // s_p = cal_p / L_p:  ds/dL = -s/L, ds/dcal = 1/L; calibrated lengths
+  // independent of each other, one separation's error shared by its pairs
+  // at every placement.
   Eigen::MatrixXd D = Eigen::MatrixXd::Zero(m, m);
   Eigen::MatrixXd V_cal = Eigen::MatrixXd::Zero(m, m);
   for (int p = 0; p < m; ++p) {
     LengthScale& ls = result.lengths[p];
     ls.u_photo = std::sqrt(std::max(0.0, cov_L(p, p)));
     D(p, p) = -ls.scale / ls.photo;
-    V_cal(p, p) = std::pow(ls.u_cal_mm / ls.photo, 2);
+    for (int q = 0; q < m; ++q) {
+      if (pairs[q].sep != pairs[p].sep) continue;
+      V_cal(p, q) = ls.u_cal_mm * ls.u_cal_mm / (ls.photo * result.lengths[q].photo);
+    }
   }
   const Eigen::MatrixXd V = D * cov_L * D + V_cal;
   for (int p = 0; p < m; ++p) result.lengths[p].u_scale = std::sqrt(std::max(0.0, V(p, p)));

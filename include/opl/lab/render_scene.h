@@ -72,9 +72,11 @@ struct SceneTagTruth {
   std::array<Eigen::Vector3d, 4> corners_in_scene;
 };
 
-// A laser spot on the surface in 3D (one per source, beam and slice).
+// A laser spot on the surface in 3D (one per placement, source, beam and
+// slice).
 struct SceneSpotTruth {
   std::string source;
+  std::string placement;  // Scene::module_placements name; empty when the scene has none
   int beam = 0;   // beam id (method.md numbering)
   int slice = 0;  // slice of the surface
   Eigen::Vector3d point_in_scene = Eigen::Vector3d::Zero();  // beam ray hit, mm
@@ -123,8 +125,10 @@ class SceneRenderer {
 
   const Scene& scene() const { return scene_; }
   const std::vector<SceneTagTruth>& tags() const { return tags_; }  // scene order
-  // Every hit of every source on every slice some shot shows (sources in
-  // module order, then slice, then beam id).
+  // Every hit of every source on every slice some shot shows (placements in
+  // scene order, then sources in module order, then slice, then beam id).
+  // At a placement the module is moved by SceneModulePlacement::
+  // SceneFromDesign; the surface stays.
   const std::vector<SceneSpotTruth>& spots() const { return spots_; }
 
  private:

@@ -168,11 +168,42 @@ struct ImageLook {
   }
 };
 
+// One placement of the laser module (issue 20): a set of shots in which the
+// module stood still at one place of the volume. The module as designed
+// (Scene::module) is moved rigidly: rotated by rotation_deg (R = Rx Ry Rz,
+// degrees, the angle convention of method.md) about the centroid of its
+// sources' designed origins, then translated by translation_mm. The surface
+// its grids land on (the walls) does not move. The identity placement is the
+// module as designed.
+struct SceneModulePlacement {
+  std::string name;  // unique, non-empty; shots name it
+  Eigen::Vector3d rotation_deg = Eigen::Vector3d::Zero();
+  Eigen::Vector3d translation_mm = Eigen::Vector3d::Zero();
+
+  // The rigid motion above for `design`: scene_from_source of every source
+  // becomes SceneFromDesign(design) * scene_from_source.
+  Rigid3d SceneFromDesign(const ModuleDesign& design) const;
+};
+
+// A calibrated test length (VDI/VDE 2634-1, ISO 10360-13; opl_verify): the
+// distance between the centres of two tags, as a calibration certificate
+// gives it.
+struct SceneCheckLength {
+  std::string name;  // unique, non-empty
+  int tag_1 = 0;
+  int tag_2 = 1;
+  double length_mm = 0.0;        // calibrated distance between the centres, > 0
+  double length_sigma_mm = 0.0;  // its standard uncertainty, >= 0
+};
+
 struct SceneShot {
   std::string camera;               // a SceneCamera name
   std::string file;                 // image file, relative to the images folder
   std::vector<std::string> lasers;  // names of the module's sources that are on
   int slice = 0;                    // calibration slice index (0 for a measurement)
+  // The module placement of this shot (Scene::module_placements), empty when
+  // the scene lists none. With placements, every lit shot names one.
+  std::string placement;
 };
 
 struct Scene {
@@ -189,6 +220,10 @@ struct Scene {
   ImageLook image;
   uint64_t seed = 1;  // of every random draw of the rendering
   std::vector<SceneShot> shots;
+  // Where the module stood (empty: one place, the module as designed).
+  std::vector<SceneModulePlacement> module_placements;
+  // Calibrated test lengths between tags (opl_verify; may be empty).
+  std::vector<SceneCheckLength> check_lengths;
 
   // Checks the description as a measurement input: at least one camera,
   // unique names, valid intrinsics, unique tag ids within 0..586, frame and
@@ -196,7 +231,10 @@ struct Scene {
   // for measuring may not: the front end finds them), among them, looks in
   // range, every shot naming
   // a camera (and lasers of the module when a module is given), unique
-  // files. The message names the field, e.g. "shots[3].camera: no camera
+  // files, module placements with unique names and finite motions (every
+  // lit shot naming one when any is listed), check lengths with unique
+  // names, two distinct tags (among the scene's when listed) and a positive
+  // length. The message names the field, e.g. "shots[3].camera: no camera
   // named 'cam9'".
   Status Validate() const;
   // Validate() plus what rendering needs: every camera posed, a module.
@@ -204,6 +242,8 @@ struct Scene {
 
   const SceneCamera* FindCamera(const std::string& name) const;  // nullptr if none
   const SceneTag* FindTag(int id) const;                          // nullptr if none
+  // Index into module_placements; -1 if none of that name.
+  int FindModulePlacement(const std::string& name) const;
 };
 
 }  // namespace opl

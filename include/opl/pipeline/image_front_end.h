@@ -232,10 +232,12 @@ struct FrontEndSpot {
   std::vector<std::pair<int, int>> views;
 };
 
-// Shots with the same lasers on and the same slice.
+// Shots with the same lasers on, the same slice and the same module
+// placement.
 struct ExposureGroup {
   std::vector<std::string> lasers;  // sorted
   int slice = 0;
+  std::string placement;            // SceneShot::placement (empty: none)
   std::vector<int> images;          // indices into the shots
 };
 
@@ -247,6 +249,15 @@ struct FrontEndResult {
   // Tag centres in the scene frame and their covariances, by id.
   std::map<int, Eigen::Vector3d> tag_centers;
   std::map<int, Eigen::Matrix3d> tag_center_covariances;
+  // The same split as FrontEndSpot's, by id: a tag centre's error is
+  // own + K z with own independent between tags and spots (its corners' own
+  // covariances / 16) and K (3 x m, the mean of its corners' shared
+  // factors) shared with every point: Cov(tag a, tag b) = K_a K_b^T,
+  // Cov(tag a, spot j) = K_a K_j^T. Empty when the adjustment gave no split.
+  // (tag_center_covariances above leaves out the corners' cross terms;
+  // own + K K^T is the full first-order covariance.)
+  std::map<int, Eigen::Matrix3d> tag_center_own_covariances;
+  std::map<int, Eigen::MatrixXd> tag_center_shared_factors;
   std::array<int, 3> frame_tags = {-1, -1, -1};  // origin, axis, plane
   // When not empty, what the frame is instead of the frame tags' (the COLMAP
   // path: "the COLMAP model's frame ...").

@@ -54,6 +54,11 @@ struct MeasureOptions {
 struct MeasureReport {
   // The located sources, in the order of the calibration, each with its name.
   std::vector<std::pair<std::string, LocateResult>> sources;
+  // The module placement of each of `sources` (Spot::placement; empty when
+  // the spots name none). With several placements a source is located once
+  // per placement: placements in order of first appearance in the spots,
+  // then sources in calibration order.
+  std::vector<std::string> source_placements;
   // Calibrated sources that had no spot (not located).
   std::vector<std::string> sources_without_spots;
   // When spots had to be identified: what IdentifySpots found (per source

@@ -34,6 +34,8 @@
 #include <string>
 #include <vector>
 
+#include <Eigen/Core>
+
 #include "opl/core/status.h"
 #include "opl/lab/scene.h"
 #include "opl/model/module_calibration.h"
@@ -80,6 +82,12 @@ struct ImageMeasureReport {
   double u_scale_factor_own = 0.0;
   double u_scale_factor_shared = 0.0;
   int shared_components = 0;  // m
+  // g_k = ds / dz_k, k = 1..m: how s moves with each shared component z_k
+  // of the front end's errors (FrontEndSpot::shared_factor,
+  // FrontEndResult::tag_center_shared_factors); empty when not propagated.
+  // With the tags' shared factors it gives the covariance of s with any
+  // tag-to-tag length (pipeline/verify_lengths.h).
+  Eigen::VectorXd scale_shared_gradient;
   // With FrontEndOptions::scale_in_adjustment: the projector adjustment
   // started from this two-step solution (pipeline/projector_measure.h):
   // cameras and tags in mm, s and u(s) of the scale inside the adjustment.

@@ -10,7 +10,9 @@
 // the module pose from the first located source (scene_from_source times s,
 // composed with the calibration's source_from_module); each identified
 // spot's depth the projection of its scaled 3D point on its beam. One
-// placement (every shot). The datum: the frame tags' four corners each (the
+// placement per module placement of the scene (SceneShot::placement; one,
+// "all shots", when the scene lists none), each started from its first
+// located source. The datum: the frame tags' four corners each (the
 // front end's scene frame, now metric), so that s = |B - A| / |B - A|_unscaled
 // with A, B the centres of the origin and axis tags.
 //

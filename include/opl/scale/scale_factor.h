@@ -10,6 +10,12 @@
 // of pairs that share a source (generalised least squares with the full
 // covariance of the s_ij), and consistency is reported as chi^2 / dof and the
 // largest normalised deviation of a pair from s.
+//
+// Several placements of the module (LocatedOrigin::placement): a pair joins
+// two sources located at the same placement only, and the pairs of one
+// calibrated separation at different placements share its calibration
+// error (their u(L_cal) terms are fully correlated), so that placements
+// average the photogrammetric errors down but not the calibration's.
 #pragma once
 
 #include <map>
@@ -26,12 +32,14 @@ namespace opl {
 // One located source as the scale computation needs it.
 struct LocatedOrigin {
   std::string name;
+  std::string placement;  // the module placement (empty: the only one)
   Eigen::Vector3d origin_in_scene = Eigen::Vector3d::Zero();    // scene units
   Eigen::Matrix3d origin_covariance = Eigen::Matrix3d::Zero();  // scene units^2
 };
 
 struct LengthScale {
   std::string from, to;
+  std::string placement;  // of both sources (empty: the only one)
   double photo = 0.0;    // L_photo, scene units
   double u_photo = 0.0;  // u(L_photo), scene units
   double cal_mm = 0.0;   // L_cal

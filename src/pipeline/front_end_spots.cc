@@ -60,7 +60,7 @@ void FrontEndRun::GroupShots() {
       auto found = group_of_key.find(key);
       if (found == group_of_key.end()) {
         found = group_of_key.emplace(key, static_cast<int>(result.groups.size())).first;
-        result.groups.push_back({lasers, shot.slice, shot.placement, {}});
+        result.groups.push_back({lasers, shot.slice, {}, shot.placement});
       }
       result.groups[static_cast<size_t>(found->second)].images.push_back(i);
     }

@@ -31,11 +31,11 @@ struct SpotObservation {
 struct Spot {
   std::string source;  // "" = unassigned
   SpotObservation observation;  // observation.beam_id 0 = unassigned
+  std::string where;  // e.g. "spots.csv:14"
   // The module placement it was shot at (Scene::module_placements; issue
   // 20): spots of different placements are different grids of the same
   // source. Empty when the module stood at one place.
   std::string placement;
-  std::string where;  // e.g. "spots.csv:14"
 
   // True when the spot names its source and its beam (source not empty and
   // beam_id >= 1). Says nothing about whether they exist in a calibration.

@@ -237,8 +237,8 @@ struct FrontEndSpot {
 struct ExposureGroup {
   std::vector<std::string> lasers;  // sorted
   int slice = 0;
-  std::string placement;            // SceneShot::placement (empty: none)
   std::vector<int> images;          // indices into the shots
+  std::string placement;            // SceneShot::placement (empty: none)
 };
 
 struct FrontEndResult {

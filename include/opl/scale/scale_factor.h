@@ -32,20 +32,20 @@ namespace opl {
 // One located source as the scale computation needs it.
 struct LocatedOrigin {
   std::string name;
-  std::string placement;  // the module placement (empty: the only one)
   Eigen::Vector3d origin_in_scene = Eigen::Vector3d::Zero();    // scene units
   Eigen::Matrix3d origin_covariance = Eigen::Matrix3d::Zero();  // scene units^2
+  std::string placement;  // the module placement (empty: the only one)
 };
 
 struct LengthScale {
   std::string from, to;
-  std::string placement;  // of both sources (empty: the only one)
   double photo = 0.0;    // L_photo, scene units
   double u_photo = 0.0;  // u(L_photo), scene units
   double cal_mm = 0.0;   // L_cal
   double u_cal_mm = 0.0;
   double scale = 0.0;    // s_ij = cal / photo
   double u_scale = 0.0;
+  std::string placement;  // of both sources (empty: the only one)
 };
 
 struct ScaleResult {

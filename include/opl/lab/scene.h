@@ -203,7 +203,7 @@ struct SceneShot {
   int slice = 0;                    // calibration slice index (0 for a measurement)
   // The module placement of this shot (Scene::module_placements), empty when
   // the scene lists none. With placements, every lit shot names one.
-  std::string placement;
+  std::string placement{};
 };
 
 struct Scene {

@@ -35,7 +35,7 @@ struct Spot {
   // The module placement it was shot at (Scene::module_placements; issue
   // 20): spots of different placements are different grids of the same
   // source. Empty when the module stood at one place.
-  std::string placement;
+  std::string placement{};
 
   // True when the spot names its source and its beam (source not empty and
   // beam_id >= 1). Says nothing about whether they exist in a calibration.

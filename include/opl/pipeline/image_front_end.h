@@ -238,7 +238,7 @@ struct ExposureGroup {
   std::vector<std::string> lasers;  // sorted
   int slice = 0;
   std::vector<int> images;          // indices into the shots
-  std::string placement;            // SceneShot::placement (empty: none)
+  std::string placement{};          // SceneShot::placement (empty: none)
 };
 
 struct FrontEndResult {

@@ -34,7 +34,7 @@ struct LocatedOrigin {
   std::string name;
   Eigen::Vector3d origin_in_scene = Eigen::Vector3d::Zero();    // scene units
   Eigen::Matrix3d origin_covariance = Eigen::Matrix3d::Zero();  // scene units^2
-  std::string placement;  // the module placement (empty: the only one)
+  std::string placement{};  // the module placement (empty: the only one)
 };
 
 struct LengthScale {
@@ -45,7 +45,7 @@ struct LengthScale {
   double u_cal_mm = 0.0;
   double scale = 0.0;    // s_ij = cal / photo
   double u_scale = 0.0;
-  std::string placement;  // of both sources (empty: the only one)
+  std::string placement{};  // of both sources (empty: the only one)
 };
 
 struct ScaleResult {

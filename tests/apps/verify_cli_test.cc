@@ -181,7 +181,7 @@ TEST_F(VerifyCli, BadInputIsExit3WithOneLineAndNoOutput) {
   std::ofstream(negative) << bad.dump();
   r = Verify("--scene " + negative + " --images " + shots_ + " --calibration " + calibration_ + outputs);
   EXPECT_EQ(r.exit_code, 3);
-  EXPECT_THAT(r.err, HasSubstr("negative.json: check_lengths[0].length_mm: must be finite and > 0"));
+  EXPECT_THAT(r.err, HasSubstr("negative.json: check_lengths[0].length_mm: -5: must be finite and > 0"));
   expect_no_output();
 
   // A missing calibration file.

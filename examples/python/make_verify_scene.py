@@ -7,25 +7,26 @@ The measuring volume is a box of 2 x 2 x 1.5 m: x from 500 to 2500 mm
 (depth, away from the cameras), y from -1000 to 1000 mm, z from -750 to
 750 mm (Z up). Tags (tag36h11, 140 mm) sit
   - on the back wall (x = 2500, facing the cameras): the three frame tags
-    and the wall's corners and edge midpoints, around the laser grids;
-  - on two posts at the front corners (x = 600, y = +-950), low and high,
-    turned towards the cameras;
-  - on brackets on the side walls (y = +-1000) at mid-depth, turned 45 deg
+    and a fourth, at the wall's corners around the laser grids;
+  - on two posts at the front corners (x = 500, y = +-1000), low and high
+    (z = +-700), turned towards the cameras;
+  - on two stands at the sides (y = +-1000) at mid-depth, turned 45 deg
     towards the cameras;
-  - on wedges on the floor (z = -750), tilted 45 deg up towards the cameras;
-  - on a 1200 mm scale bar lying on the floor in front of the back wall
-    (the scene's `artifact`, the conventional scale the OPL column is
-    compared with).
+  - on two wedges on the floor (z = -750), tilted 45 deg up towards the
+    cameras;
+  - on a 1200 mm scale bar lying on the floor (the scene's `artifact`, the
+    conventional scale the OPL column is compared with).
 Check lengths join tags through the volume: the four space diagonals, edges
 along x, y and z, and a floor diagonal; each one's length_mm is the true
 distance of the two tag centres computed here (the scene JSON places them
 exactly), with the 2 um standard uncertainty of a calibrated bar.
 
 Six 18 MP cameras (4912 x 3684, fx 4000 px, as scene_18mp.json): four in
-front of the volume (x = -1800), two at the sides; each takes one image with
-laser A and one with laser B. The module (scene_verify_18mp_module.json: the
-prototype's two 11 x 11 sources, 29 deg, 55 mm apart) stands at the front of
-the volume (x = 500) and throws its grids on the back wall.
+front of the volume (x = -1800 and -1700, at two heights), two wider apart;
+each takes one image with laser A and one with laser B. The module
+(scene_verify_18mp_module.json: the prototype's two 11 x 11 sources, 29 deg,
+55 mm apart) stands at the front of the volume (x = 500) and throws its grids
+on the back wall.
 
 Run from anywhere: /usr/bin/python3 examples/python/make_verify_scene.py
 It prints every check length and, per camera, the tags in the image with

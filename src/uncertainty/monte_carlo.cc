@@ -103,7 +103,7 @@ IterationResult RunIteration(const Problem& problem, int iteration) {
     Eigen::Vector3d offset;
     for (int k = 0; k < 3; ++k) offset[k] = WrapAngleRad(r->rotation_xyz_rad[k] - source.angles[k]);
     result.angle_offsets.push_back(offset);
-    located.push_back({source.name, r->scene_from_source.translation, r->origin_covariance, std::string()});
+    located.push_back({source.name, r->scene_from_source.translation, r->origin_covariance});
   }
   Result<ScaleResult> scale = ComputeScaleFactor(*problem.calibration, located);
   if (!scale.ok()) {
@@ -298,8 +298,8 @@ Result<MonteCarloReport> RunMeasurementMonteCarlo(const ModuleDesign& design,
     m.rotation_cramer_rao_std_rad =
         StdDevs(angles_jacobian * crb->topLeftCorner<3, 3>() * angles_jacobian.transpose());
     report.sources.push_back(m);
-    located.push_back({s.name, s.pose.translation, first_order.bottomRightCorner<3, 3>(), std::string()});
-    bound.push_back({s.name, s.pose.translation, crb->bottomRightCorner<3, 3>(), std::string()});
+    located.push_back({s.name, s.pose.translation, first_order.bottomRightCorner<3, 3>()});
+    bound.push_back({s.name, s.pose.translation, crb->bottomRightCorner<3, 3>()});
   }
   Result<ScaleResult> first_order = ComputeScaleFactor(*calibration, located);
   if (!first_order.ok()) return first_order.status();

@@ -20,6 +20,13 @@ struct LinearError {
   std::map<int, Eigen::Vector3d> tag_gradient;
   double independent_variance = 0.0;
   Eigen::VectorXd shared_gradient;  // on z; empty when none
+
+  // Adds `a` to tag `id`'s gradient (a tag may enter twice: a check length
+  // sharing a tag with the bar). Eigen leaves a default-constructed vector
+  // uninitialised, so the entry starts from zero here.
+  void Add(int id, const Eigen::Vector3d& a) {
+    tag_gradient.emplace(id, Eigen::Vector3d::Zero()).first->second += a;
+  }
 };
 
 class ErrorModel {
@@ -73,12 +80,15 @@ std::string Pad(const std::string& s, size_t width) {
 
 }  // namespace
 
+Status CheckSceneHasCheckLengths(const Scene& scene) {
+  if (!scene.check_lengths.empty()) return Status::Ok();
+  return Status::InvalidArgument(
+      "check_lengths: the scene lists no check length (pairs of tags with calibrated "
+      "distances; docs/verify.md)");
+}
+
 Result<VerifyReport> VerifyLengths(const Scene& scene, const ImageMeasureReport& measured) {
-  if (scene.check_lengths.empty()) {
-    return Status::InvalidArgument(
-        "check_lengths: the scene lists no check length (pairs of tags with calibrated "
-        "distances; docs/verify.md)");
-  }
+  OPL_RETURN_IF_ERROR(CheckSceneHasCheckLengths(scene));
   const FrontEndResult& fe = measured.front_end;
   const ScaleResult& scale = measured.measure.scale;
   if (!(scale.scale_factor > 0.0)) return Status::NoSolution("the measurement has no scale factor");
@@ -116,8 +126,8 @@ Result<VerifyReport> VerifyLengths(const Scene& scene, const ImageMeasureReport&
         report.bar_scale_factor = scene.artifact->length_mm / d_bar;
         LinearError e;
         const double sb = *report.bar_scale_factor;
-        e.tag_gradient[scene.artifact->tag_2] += -sb / d_bar * e_bar;
-        e.tag_gradient[scene.artifact->tag_1] += sb / d_bar * e_bar;
+        e.Add(scene.artifact->tag_2, -sb / d_bar * e_bar);
+        e.Add(scene.artifact->tag_1, sb / d_bar * e_bar);
         e.independent_variance = std::pow(scene.artifact->length_sigma_mm / d_bar, 2);
         report.u_bar_scale_factor = std::sqrt(model.Variance(e));
       }
@@ -143,8 +153,8 @@ Result<VerifyReport> VerifyLengths(const Scene& scene, const ImageMeasureReport&
     const Eigen::Vector3d e = d > 0.0 ? Eigen::Vector3d((*t2 - *t1) / d) : Eigen::Vector3d::Zero();
 
     LinearError opl;
-    opl.tag_gradient[check.tag_2] += s * e;
-    opl.tag_gradient[check.tag_1] -= s * e;
+    opl.Add(check.tag_2, s * e);
+    opl.Add(check.tag_1, -(s * e));
     opl.independent_variance = d * d * s_own_var;
     if (report.correlations_kept) opl.shared_gradient = d * measured.scale_shared_gradient;
     r.opl = Finish(s * d, model.Variance(opl), check.length_mm, check.length_sigma_mm);
@@ -152,10 +162,10 @@ Result<VerifyReport> VerifyLengths(const Scene& scene, const ImageMeasureReport&
     if (report.bar_scale_factor) {
       const double sb = *report.bar_scale_factor;
       LinearError bar;
-      bar.tag_gradient[check.tag_2] += sb * e;
-      bar.tag_gradient[check.tag_1] -= sb * e;
-      bar.tag_gradient[scene.artifact->tag_2] -= sb * (d / d_bar) * e_bar;
-      bar.tag_gradient[scene.artifact->tag_1] += sb * (d / d_bar) * e_bar;
+      bar.Add(check.tag_2, sb * e);
+      bar.Add(check.tag_1, -(sb * e));
+      bar.Add(scene.artifact->tag_2, -(sb * (d / d_bar) * e_bar));
+      bar.Add(scene.artifact->tag_1, sb * (d / d_bar) * e_bar);
       bar.independent_variance = std::pow(d / d_bar * scene.artifact->length_sigma_mm, 2);
       r.bar = Finish(sb * d, model.Variance(bar), check.length_mm, check.length_sigma_mm);
     }
@@ -297,6 +307,64 @@ std::string VerifyReport::ToJson() const {
   doc["correlations_kept"] = correlations_kept;
   doc["warnings"] = warnings;
   return doc.dump(2) + "\n";
+}
+
+LinePlot VerifyReport::ToPlot(const std::string& scene_name) const {
+  LinePlot plot;
+  plot.title = "Length measurement error, " + scene_name + ": E +- U(E) (k = 2)";
+  double lo = INFINITY, hi = -INFINITY;
+  for (const CheckLengthResult& r : lengths) {
+    lo = std::min(lo, r.calibrated_mm);
+    hi = std::max(hi, r.calibrated_mm);
+  }
+  // A single length (or equal ones): 1 % of the length itself.
+  const double shift = 0.01 * (hi > lo ? hi - lo : std::max(1.0, std::abs(hi)));
+  PlotSeries opl_series, bar_series, zero;
+  opl_series.label = "OPL (laser module alone)";
+  bar_series.label = "bar (the scene's artifact)";
+  opl_series.style = bar_series.style = PlotSeries::Style::kMarkers;
+  zero.style = PlotSeries::Style::kDashed;
+  for (const CheckLengthResult& r : lengths) {
+    opl_series.x.push_back(r.calibrated_mm - (r.bar ? shift : 0.0));
+    opl_series.y.push_back(r.opl.error_mm);
+    opl_series.y_err.push_back(r.opl.expanded_u_error_mm);
+    if (r.bar) {
+      bar_series.x.push_back(r.calibrated_mm + shift);
+      bar_series.y.push_back(r.bar->error_mm);
+      bar_series.y_err.push_back(r.bar->expanded_u_error_mm);
+    }
+  }
+  if (!lengths.empty()) {
+    zero.x = {lo - 2.0 * shift, hi + 2.0 * shift};
+    zero.y = {0.0, 0.0};
+  }
+  PlotPanel both;
+  both.x_label = "calibrated length L_cal (mm)";
+  both.y_label = "E = L - L_cal (mm)";
+  if (bar_series.x.empty()) {
+    both.series = {std::move(opl_series), std::move(zero)};
+    plot.panels.push_back(std::move(both));
+    plot.panel_width_px = 900;
+    plot.panel_height_px = 560;
+    return plot;
+  }
+  // With a bar: both columns on one scale, then the bar alone on its own
+  // (its E and U(E) may be far smaller than the OPL column's). The OPL
+  // series stays in the second panel as an empty one so that the bar keeps
+  // its colour.
+  both.title = "both columns";
+  PlotPanel bar_only = both;
+  bar_only.title = "bar column, its own scale";
+  PlotSeries placeholder;
+  placeholder.style = PlotSeries::Style::kMarkers;
+  placeholder.x = {NAN};
+  placeholder.y = {NAN};
+  bar_only.series = {placeholder, bar_series, zero};
+  both.series = {std::move(opl_series), std::move(bar_series), std::move(zero)};
+  plot.panels = {std::move(both), std::move(bar_only)};
+  plot.panel_width_px = 640;
+  plot.panel_height_px = 520;
+  return plot;
 }
 
 }  // namespace opl

@@ -9,6 +9,7 @@
    (opl_simulate calibration / mc --json / mc --calibration --json / images
    truth.json, opl_calibrate --out, opl_measure --json (spots and images),
    opl_camera board --board-json / calibrate --out --report, opl_scene init,
+   opl_verify --json,
    opl_sequencer's per-frame metadata and simulated-chip log), and each
    validates. Each is validated again with a "provenance" record (the one
    opl_scene wrote) added at its top level: the shared provenance schema is
@@ -46,6 +47,7 @@ FORMAT_TO_SCHEMA = {
     "opl.camera_calibration_report": "camera_calibration_report",
     "opl.monte_carlo_report": "monte_carlo_report",
     "opl.calibration_monte_carlo_report": "calibration_monte_carlo_report",
+    "opl.verify_report": "verify_report",
 }
 
 failures = []
@@ -204,6 +206,24 @@ def produce_outputs(src, tools, work):
                         ex + "/scene_small.json", "--json"])
             if text is not None:
                 out.append(("opl_measure --images --json", text, None))
+            # The acceptance test's report: the same scene with check lengths.
+            verify = tools.path("opl_verify")
+            if verify is not None:
+                with open(ex + "/scene_small.json", encoding="utf-8") as f:
+                    checked_scene = json.load(f)
+                checked_scene["module"] = ex + "/scene_small_module.json"
+                centres = {t["id"]: t["center_mm"] for t in checked_scene["tags"]["placements"]}
+                checked_scene["check_lengths"] = [
+                    {"name": "t%d-t%d" % (a, b), "tag_1": a, "tag_2": b,
+                     "length_mm": sum((centres[a][k] - centres[b][k]) ** 2 for k in range(3)) ** 0.5,
+                     "length_sigma_mm": 0.002} for a, b in ((0, 3), (4, 5), (6, 7))]
+                with open(w("checked_scene.json"), "w", encoding="utf-8") as f:
+                    json.dump(checked_scene, f)
+                if run([verify, "--scene", w("checked_scene.json"), "--images", shots, "--calibration",
+                        w("small_cal.json"), "--json", w("verify.json")]) is not None:
+                    out.append(("opl_verify --json", w("verify.json"), False))
+            else:
+                print("note: opl_verify not built: its report not validated", flush=True)
     # Boards and cameras.
     if run([camera, "board", "--out", w("board.png"), "--cols", "4", "--rows", "3", "--tag-mm", "30",
             "--gap-mm", "7.5", "--dpi", "100", "--board-json", w("board.json")]) is not None:

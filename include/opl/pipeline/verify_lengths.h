@@ -49,6 +49,7 @@
 #include "opl/core/status.h"
 #include "opl/lab/scene.h"
 #include "opl/pipeline/measure_images.h"
+#include "opl/report/line_plot.h"
 
 namespace opl {
 
@@ -95,7 +96,19 @@ struct VerifyReport {
   std::string ToCsv() const;
   // {"format": "opl.verify_report", "version": 1, ...} (docs/verify.md).
   std::string ToJson() const;
+  // E against L_cal (mm), titled with `scene_name`: each column as markers
+  // with error bars +-U(E) (OPL first, then the bar), drawn apart by 1 % of
+  // the lengths' span each side of L_cal so that the bars do not hide each
+  // other, and the line E = 0 (dashed). With a bar column a second panel
+  // shows it alone on its own scale (its E and U(E) may be far smaller).
+  // RenderLinePlotPng (report/line_plot.h) draws it.
+  LinePlot ToPlot(const std::string& scene_name) const;
 };
+
+// OK when the scene lists at least one check length; else InvalidArgument
+// "check_lengths: the scene lists no check length ...". opl_verify asks it
+// before reading any image; VerifyLengths refuses such a scene the same way.
+Status CheckSceneHasCheckLengths(const Scene& scene);
 
 Result<VerifyReport> VerifyLengths(const Scene& scene, const ImageMeasureReport& measured);
 

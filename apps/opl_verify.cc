@@ -33,6 +33,7 @@ struct Args {
   std::string plot_path;
   int threads = 0;
   bool one_pose_per_camera = false;
+  bool no_scale_in_adjustment = false;
   opl::cli::ImageRunArgs image_run;  // --spot-channel, --no-dark-frames, --force, --verbose
 };
 
@@ -51,12 +52,16 @@ int Run(int argc, char** argv) {
       "\n"
       "The session is measured as opl_measure --images measures it (tags and laser spots\n"
       "detected, cameras posed, one bundle adjustment, s from the module's spots); then\n"
-      "every check length is taken from the adjusted (unscaled) tag centres and scaled\n"
-      "twice: by s, the laser module alone (column 'OPL'), and by the scene's\n"
-      "'artifact', the conventional scale bar (column 'bar'; absent without one). U(E)\n"
-      "keeps the correlations between s and the tags (shared cameras, shared datum) and\n"
-      "adds the certificate's u(L_cal). |E| <= U(E) means the error is explained by the\n"
-      "stated uncertainty; OPL 'meets the bar' when its E are as small as the bar's.\n"
+      "every check length is measured three ways: the adjusted (unscaled) tag centres\n"
+      "scaled by s, the laser module alone (column 'OPL', the two-step path); the same\n"
+      "tags in the bundle adjustment that holds the module as a calibrated projector, so\n"
+      "that the scene comes out in mm (column 'adj', the module alone again, about 30x\n"
+      "more precise; --no-scale-in-adjustment leaves it out; docs/multiview.md); and the\n"
+      "unscaled centres scaled by the scene's 'artifact', the conventional scale bar\n"
+      "(column 'bar'; absent without one). U(E) keeps the correlations between the scale\n"
+      "and the tags (shared cameras, shared datum) and adds the certificate's u(L_cal).\n"
+      "|E| <= U(E) means the error is explained by the stated uncertainty; OPL 'meets the\n"
+      "bar' when its E are as small as the bar's.\n"
       "\n"
       "A table goes to stdout (one row per check length: L_cal, then L, E, U(E) of each\n"
       "column; the summary and the warnings). --csv, --json and --plot write the same as\n"
@@ -80,13 +85,15 @@ int Run(int argc, char** argv) {
                  "Write the report as JSON (format opl.verify_report, docs/verify.md)")
       ->type_name("FILE");
   app.add_option("--plot", args.plot_path,
-                 "Write a PNG plot of E against L_cal, both columns with their +-U(E)")
+                 "Write a PNG plot of E against L_cal, every column with its +-U(E)")
       ->type_name("FILE.png");
   app.add_option("--threads", args.threads, "Detection threads, >= 0; 0 = every core")
       ->capture_default_str();
   app.add_flag("--one-pose-per-camera", args.one_pose_per_camera,
                "The shots of one camera share one pose (cameras on tripods, untouched for\n"
                "the whole session; docs/images.md)");
+  app.add_flag("--no-scale-in-adjustment", args.no_scale_in_adjustment,
+               "Leave out the column of the scale inside the adjustment (column 'adj')");
   cli::AddImageRunOptions(app, &args.image_run);
   app.footer(cli::HelpFooter(
       "  opl_verify --scene scene.json --images shots/ --calibration cal.json\n"
@@ -132,6 +139,10 @@ int Run(int argc, char** argv) {
   ImageMeasureOptions options;
   options.front_end.num_threads = args.threads;
   options.front_end.one_pose_per_camera = args.one_pose_per_camera;
+  if (!args.no_scale_in_adjustment) {
+    options.front_end.scale_in_adjustment = true;
+    options.projector_tag_lengths = CheckLengthTags(*scene);
+  }
   cli::ApplyImageRunOptions(args.image_run, &options.front_end);
   cli::ProgressBar bar("images", cli::StderrIsTerminal());
   options.front_end.progress = bar.StageCallback("detect");

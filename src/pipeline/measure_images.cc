@@ -286,7 +286,7 @@ Result<ImageMeasureReport> MeasureScaleFromFrontEnd(FrontEndResult front_end,
     ProjectorAdjustmentOptions projector_options;
     projector_options.num_threads = std::max(1, options.front_end.num_threads);
     Result<ProjectorAdjustmentResult> projector =
-        AdjustScaleWithProjector(report, calibration, projector_options);
+        AdjustScaleWithProjector(report, calibration, projector_options, options.projector_tag_lengths);
     if (!projector.ok()) return projector.status();
     report.projector = std::move(*projector);
   }

@@ -1,6 +1,7 @@
 #include "opl/pipeline/projector_measure.h"
 
 #include <algorithm>
+#include <array>
 #include <map>
 #include <set>
 
@@ -8,9 +9,9 @@
 
 namespace opl {
 
-Result<ProjectorAdjustmentData> ProjectorDataFromTwoStep(const ImageMeasureReport& two_step,
-                                                         const ModuleCalibration& calibration,
-                                                         ProjectorAdjustmentOptions* options) {
+Result<ProjectorAdjustmentData> ProjectorDataFromTwoStep(
+    const ImageMeasureReport& two_step, const ModuleCalibration& calibration,
+    ProjectorAdjustmentOptions* options, const std::vector<std::pair<int, int>>& tag_lengths) {
   const FrontEndResult& fe = two_step.front_end;
   const BundleData& adj = fe.adjustment;
   if (adj.cameras.empty() || fe.tag_first_point.empty()) {
@@ -123,15 +124,38 @@ Result<ProjectorAdjustmentData> ProjectorDataFromTwoStep(const ImageMeasureRepor
       if (j >= 0) options->datum_point_sets[a].push_back(j);
     }
   }
+  // The requested tag-to-tag lengths: each tag's four corners.
+  options->length_point_sets.clear();
+  auto corners_of = [&](int id, std::vector<int>* set) -> Status {
+    const auto found = fe.tag_first_point.find(id);
+    if (found != fe.tag_first_point.end()) {
+      for (int q = 0; q < 4; ++q) {
+        const int j = new_index[static_cast<size_t>(found->second + q)];
+        if (j >= 0) set->push_back(j);
+      }
+    }
+    if (set->empty()) {
+      return Status::InvalidArgument("scale_in_adjustment: tag " + std::to_string(id) +
+                                     " is not in the adjustment (not seen from two camera positions)");
+    }
+    return Status::Ok();
+  };
+  for (const auto& [a, b] : tag_lengths) {
+    std::array<std::vector<int>, 2> ends;
+    OPL_RETURN_IF_ERROR(corners_of(a, &ends[0]));
+    OPL_RETURN_IF_ERROR(corners_of(b, &ends[1]));
+    options->length_point_sets.push_back(std::move(ends));
+  }
   options->unscaled_datum_length =
       (fe.tag_centers.at(fe.frame_tags[1]) - fe.tag_centers.at(fe.frame_tags[0])).norm();
   return data;
 }
 
-Result<ProjectorAdjustmentResult> AdjustScaleWithProjector(const ImageMeasureReport& two_step,
-                                                           const ModuleCalibration& calibration,
-                                                           ProjectorAdjustmentOptions options) {
-  Result<ProjectorAdjustmentData> data = ProjectorDataFromTwoStep(two_step, calibration, &options);
+Result<ProjectorAdjustmentResult> AdjustScaleWithProjector(
+    const ImageMeasureReport& two_step, const ModuleCalibration& calibration,
+    ProjectorAdjustmentOptions options, const std::vector<std::pair<int, int>>& tag_lengths) {
+  Result<ProjectorAdjustmentData> data =
+      ProjectorDataFromTwoStep(two_step, calibration, &options, tag_lengths);
   if (!data.ok()) return data.status();
   Result<ProjectorAdjustmentResult> r = ProjectorAdjust(*data, options);
   if (!r.ok()) return Status(r.status().code(), "scale_in_adjustment: " + r.status().message());

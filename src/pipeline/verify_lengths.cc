@@ -87,6 +87,12 @@ Status CheckSceneHasCheckLengths(const Scene& scene) {
       "distances; docs/verify.md)");
 }
 
+std::vector<std::pair<int, int>> CheckLengthTags(const Scene& scene) {
+  std::vector<std::pair<int, int>> tags;
+  for (const SceneCheckLength& c : scene.check_lengths) tags.emplace_back(c.tag_1, c.tag_2);
+  return tags;
+}
+
 Result<VerifyReport> VerifyLengths(const Scene& scene, const ImageMeasureReport& measured) {
   OPL_RETURN_IF_ERROR(CheckSceneHasCheckLengths(scene));
   const FrontEndResult& fe = measured.front_end;
@@ -134,6 +140,20 @@ Result<VerifyReport> VerifyLengths(const Scene& scene, const ImageMeasureReport&
     }
   }
 
+  // OPL in the adjustment: its lengths, when it was asked for them.
+  const ProjectorAdjustmentResult* projector = nullptr;
+  if (measured.projector) {
+    if (measured.projector->lengths_mm.size() == scene.check_lengths.size()) {
+      projector = &*measured.projector;
+      report.projector_scale_factor = projector->scale_factor;
+      report.u_projector_scale_factor = projector->u_scale_factor;
+    } else {
+      report.warnings.push_back(
+          "no column for the scale inside the adjustment: it was not asked for the check lengths "
+          "(ImageMeasureOptions::projector_tag_lengths = CheckLengthTags(scene))");
+    }
+  }
+
   for (const SceneCheckLength& check : scene.check_lengths) {
     const Eigen::Vector3d* t1 = center(check.tag_1);
     const Eigen::Vector3d* t2 = center(check.tag_2);
@@ -169,11 +189,16 @@ Result<VerifyReport> VerifyLengths(const Scene& scene, const ImageMeasureReport&
       bar.independent_variance = std::pow(d / d_bar * scene.artifact->length_sigma_mm, 2);
       r.bar = Finish(sb * d, model.Variance(bar), check.length_mm, check.length_sigma_mm);
     }
+    if (projector != nullptr) {
+      const size_t k = report.lengths.size();
+      r.projector = Finish(projector->lengths_mm[k], std::pow(projector->u_lengths_mm[k], 2),
+                           check.length_mm, check.length_sigma_mm);
+    }
     report.lengths.push_back(r);
   }
 
   // Summary and the test's conditions.
-  double sum_opl = 0.0, sum_bar = 0.0;
+  double sum_opl = 0.0, sum_bar = 0.0, sum_projector = 0.0;
   for (const CheckLengthResult& r : report.lengths) {
     report.longest_mm = std::max(report.longest_mm, r.calibrated_mm);
     report.max_abs_error_opl_mm = std::max(report.max_abs_error_opl_mm, std::abs(r.opl.error_mm));
@@ -182,10 +207,16 @@ Result<VerifyReport> VerifyLengths(const Scene& scene, const ImageMeasureReport&
       report.max_abs_error_bar_mm = std::max(report.max_abs_error_bar_mm, std::abs(r.bar->error_mm));
       sum_bar += r.bar->error_mm * r.bar->error_mm;
     }
+    if (r.projector) {
+      report.max_abs_error_projector_mm =
+          std::max(report.max_abs_error_projector_mm, std::abs(r.projector->error_mm));
+      sum_projector += r.projector->error_mm * r.projector->error_mm;
+    }
   }
   const double n = static_cast<double>(report.lengths.size());
   report.rms_error_opl_mm = std::sqrt(sum_opl / n);
   if (report.bar_scale_factor) report.rms_error_bar_mm = std::sqrt(sum_bar / n);
+  if (projector != nullptr) report.rms_error_projector_mm = std::sqrt(sum_projector / n);
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(INFINITY), hi = -lo;
   for (const auto& [id, c] : fe.tag_centers) {
     lo = lo.cwiseMin(c);
@@ -214,27 +245,45 @@ std::string VerifyReport::ToText() const {
   std::string out = "Length measurement error E = L - L_cal (VDI/VDE 2634-1, ISO 10360-13), mm; "
                     "U(E) expanded, k = 2\n";
   const bool has_bar = bar_scale_factor.has_value();
+  const bool has_projector = projector_scale_factor.has_value();
+  out += "columns: OPL = scaled by the laser module (two-step)";
+  if (has_projector) out += "; adj = OPL inside the bundle adjustment";
+  if (has_bar) out += "; bar = scaled by the scene's bar";
+  out += "\n";
   out += Pad("check", 14) + Pad("tags", 10) + Pad("L_cal", 12) + Pad("L (OPL)", 12) +
-         Pad("E (OPL)", 10) + Pad("U(E)", 9) + (has_bar ? Pad("L (bar)", 12) + Pad("E (bar)", 10) + Pad("U(E)", 9) : "") +
-         "\n";
+         Pad("E (OPL)", 10) + Pad("U(E)", 9) +
+         (has_projector ? Pad("L (adj)", 12) + Pad("E (adj)", 10) + Pad("U(E)", 9) : "") +
+         (has_bar ? Pad("L (bar)", 12) + Pad("E (bar)", 10) + Pad("U(E)", 9) : "") + "\n";
   for (const CheckLengthResult& r : lengths) {
     out += Pad(r.name, 14) + Pad(std::to_string(r.tag_1) + "-" + std::to_string(r.tag_2), 10) +
            Pad(Fixed(r.calibrated_mm, 3), 12) + Pad(Fixed(r.opl.measured_mm, 3), 12) +
            Pad(Fixed(r.opl.error_mm, 3), 10) + Pad(Fixed(r.opl.expanded_u_error_mm, 3), 9);
+    if (has_projector && r.projector) {
+      out += Pad(Fixed(r.projector->measured_mm, 3), 12) + Pad(Fixed(r.projector->error_mm, 3), 10) +
+             Pad(Fixed(r.projector->expanded_u_error_mm, 3), 9);
+    }
     if (has_bar && r.bar) {
       out += Pad(Fixed(r.bar->measured_mm, 3), 12) + Pad(Fixed(r.bar->error_mm, 3), 10) +
              Pad(Fixed(r.bar->expanded_u_error_mm, 3), 9);
     }
     out += "\n";
   }
-  int within_opl = 0, within_bar = 0;
+  int within_opl = 0, within_bar = 0, within_projector = 0;
   for (const CheckLengthResult& r : lengths) {
     within_opl += r.opl.within_uncertainty() ? 1 : 0;
     within_bar += r.bar && r.bar->within_uncertainty() ? 1 : 0;
+    within_projector += r.projector && r.projector->within_uncertainty() ? 1 : 0;
   }
   out += "OPL: s = " + FormatPrintf("%.9f", scale_factor) + " +- " + FormatPrintf("%.9f", u_scale_factor) +
          "; max |E| " + Fixed(max_abs_error_opl_mm, 3) + " mm, RMS E " + Fixed(rms_error_opl_mm, 3) +
          " mm; |E| <= U(E) for " + std::to_string(within_opl) + " of " + std::to_string(lengths.size()) + "\n";
+  if (has_projector) {
+    out += "adj: s = " + FormatPrintf("%.9f", *projector_scale_factor) + " +- " +
+           FormatPrintf("%.9f", u_projector_scale_factor) + "; max |E| " +
+           Fixed(max_abs_error_projector_mm, 3) + " mm, RMS E " + Fixed(rms_error_projector_mm, 3) +
+           " mm; |E| <= U(E) for " + std::to_string(within_projector) + " of " +
+           std::to_string(lengths.size()) + "\n";
+  }
   if (has_bar) {
     out += "bar: s = " + FormatPrintf("%.9f", *bar_scale_factor) + " +- " +
            FormatPrintf("%.9f", u_bar_scale_factor) + "; max |E| " + Fixed(max_abs_error_bar_mm, 3) +
@@ -250,7 +299,8 @@ std::string VerifyReport::ToText() const {
 std::string VerifyReport::ToCsv() const {
   std::string out =
       "name,tag_1,tag_2,calibrated_mm,u_calibrated_mm,opl_mm,u_opl_mm,opl_error_mm,"
-      "opl_expanded_u_error_mm,bar_mm,u_bar_mm,bar_error_mm,bar_expanded_u_error_mm\n";
+      "opl_expanded_u_error_mm,bar_mm,u_bar_mm,bar_error_mm,bar_expanded_u_error_mm,"
+      "adjustment_mm,u_adjustment_mm,adjustment_error_mm,adjustment_expanded_u_error_mm\n";
   for (const CheckLengthResult& r : lengths) {
     out += csv_internal::QuoteCsvField(r.name) + "," + std::to_string(r.tag_1) + "," + std::to_string(r.tag_2) + "," +
            FormatRoundTrip(r.calibrated_mm) + "," + FormatRoundTrip(r.u_calibrated_mm) + "," +
@@ -259,6 +309,14 @@ std::string VerifyReport::ToCsv() const {
     if (r.bar) {
       out += FormatRoundTrip(r.bar->measured_mm) + "," + FormatRoundTrip(r.bar->u_measured_mm) + "," +
              FormatRoundTrip(r.bar->error_mm) + "," + FormatRoundTrip(r.bar->expanded_u_error_mm);
+    } else {
+      out += ",,,";
+    }
+    out += ",";
+    if (r.projector) {
+      out += FormatRoundTrip(r.projector->measured_mm) + "," + FormatRoundTrip(r.projector->u_measured_mm) +
+             "," + FormatRoundTrip(r.projector->error_mm) + "," +
+             FormatRoundTrip(r.projector->expanded_u_error_mm);
     } else {
       out += ",,,";
     }
@@ -295,6 +353,7 @@ std::string VerifyReport::ToJson() const {
                         {"unscaled", r.unscaled},
                         {"opl", scaled(r.opl)}};
     row["bar"] = r.bar ? scaled(*r.bar) : ordered_json(nullptr);
+    row["adjustment"] = r.projector ? scaled(*r.projector) : ordered_json(nullptr);
     rows.push_back(std::move(row));
   }
   doc["lengths"] = std::move(rows);
@@ -302,6 +361,11 @@ std::string VerifyReport::ToJson() const {
   doc["rms_error_opl_mm"] = rms_error_opl_mm;
   doc["max_abs_error_bar_mm"] = bar_scale_factor ? ordered_json(max_abs_error_bar_mm) : ordered_json(nullptr);
   doc["rms_error_bar_mm"] = bar_scale_factor ? ordered_json(rms_error_bar_mm) : ordered_json(nullptr);
+  const bool adj = projector_scale_factor.has_value();
+  doc["adjustment_scale_factor"] = adj ? ordered_json(*projector_scale_factor) : ordered_json(nullptr);
+  doc["u_adjustment_scale_factor"] = adj ? ordered_json(u_projector_scale_factor) : ordered_json(nullptr);
+  doc["max_abs_error_adjustment_mm"] = adj ? ordered_json(max_abs_error_projector_mm) : ordered_json(nullptr);
+  doc["rms_error_adjustment_mm"] = adj ? ordered_json(rms_error_projector_mm) : ordered_json(nullptr);
   doc["space_diagonal_mm"] = space_diagonal_mm;
   doc["longest_mm"] = longest_mm;
   doc["correlations_kept"] = correlations_kept;
@@ -317,51 +381,55 @@ LinePlot VerifyReport::ToPlot(const std::string& scene_name) const {
     lo = std::min(lo, r.calibrated_mm);
     hi = std::max(hi, r.calibrated_mm);
   }
-  // A single length (or equal ones): 1 % of the length itself.
+  // Columns drawn apart by 1 % of the lengths' span (a single length: 1 %
+  // of itself) so that their error bars do not hide each other.
   const double shift = 0.01 * (hi > lo ? hi - lo : std::max(1.0, std::abs(hi)));
-  PlotSeries opl_series, bar_series, zero;
-  opl_series.label = "OPL (laser module alone)";
+  PlotSeries opl_series, projector_series, bar_series, zero;
+  opl_series.label = "OPL, two-step (module alone)";
+  projector_series.label = "OPL in the adjustment (module alone)";
   bar_series.label = "bar (the scene's artifact)";
-  opl_series.style = bar_series.style = PlotSeries::Style::kMarkers;
+  opl_series.style = projector_series.style = bar_series.style = PlotSeries::Style::kMarkers;
   zero.style = PlotSeries::Style::kDashed;
+  auto add = [](PlotSeries* series, double x, const ScaledLength& l) {
+    series->x.push_back(x);
+    series->y.push_back(l.error_mm);
+    series->y_err.push_back(l.expanded_u_error_mm);
+  };
   for (const CheckLengthResult& r : lengths) {
-    opl_series.x.push_back(r.calibrated_mm - (r.bar ? shift : 0.0));
-    opl_series.y.push_back(r.opl.error_mm);
-    opl_series.y_err.push_back(r.opl.expanded_u_error_mm);
-    if (r.bar) {
-      bar_series.x.push_back(r.calibrated_mm + shift);
-      bar_series.y.push_back(r.bar->error_mm);
-      bar_series.y_err.push_back(r.bar->expanded_u_error_mm);
-    }
+    add(&opl_series, r.calibrated_mm - shift, r.opl);
+    if (r.projector) add(&projector_series, r.calibrated_mm, *r.projector);
+    if (r.bar) add(&bar_series, r.calibrated_mm + shift, *r.bar);
   }
   if (!lengths.empty()) {
     zero.x = {lo - 2.0 * shift, hi + 2.0 * shift};
     zero.y = {0.0, 0.0};
   }
-  PlotPanel both;
-  both.x_label = "calibrated length L_cal (mm)";
-  both.y_label = "E = L - L_cal (mm)";
-  if (bar_series.x.empty()) {
-    both.series = {std::move(opl_series), std::move(zero)};
-    plot.panels.push_back(std::move(both));
+  PlotPanel all;
+  all.x_label = "calibrated length L_cal (mm)";
+  all.y_label = "E = L - L_cal (mm)";
+  const bool small = !projector_series.x.empty() || !bar_series.x.empty();
+  // Empty series keep each column's colour in both panels.
+  PlotSeries none;
+  none.style = PlotSeries::Style::kMarkers;
+  none.x = {NAN};
+  none.y = {NAN};
+  auto or_none = [&](const PlotSeries& s) { return s.x.empty() ? none : s; };
+  if (!small) {
+    all.series = {std::move(opl_series), std::move(zero)};
+    plot.panels.push_back(std::move(all));
     plot.panel_width_px = 900;
     plot.panel_height_px = 560;
     return plot;
   }
-  // With a bar: both columns on one scale, then the bar alone on its own
-  // (its E and U(E) may be far smaller than the OPL column's). The OPL
-  // series stays in the second panel as an empty one so that the bar keeps
-  // its colour.
-  both.title = "both columns";
-  PlotPanel bar_only = both;
-  bar_only.title = "bar column, its own scale";
-  PlotSeries placeholder;
-  placeholder.style = PlotSeries::Style::kMarkers;
-  placeholder.x = {NAN};
-  placeholder.y = {NAN};
-  bar_only.series = {placeholder, bar_series, zero};
-  both.series = {std::move(opl_series), std::move(bar_series), std::move(zero)};
-  plot.panels = {std::move(both), std::move(bar_only)};
+  // The two-step column's U(E) can be far larger than the others': a second
+  // panel shows the adjustment's and the bar's columns on their own scale.
+  all.title = "every column";
+  PlotPanel close = all;
+  close.title = "in the adjustment and bar, their own scale";
+  PlotSeries unlabelled_none = none;
+  close.series = {unlabelled_none, or_none(projector_series), or_none(bar_series), zero};
+  all.series = {std::move(opl_series), or_none(projector_series), or_none(bar_series), std::move(zero)};
+  plot.panels = {std::move(all), std::move(close)};
   plot.panel_width_px = 640;
   plot.panel_height_px = 520;
   return plot;

@@ -148,6 +148,19 @@ Status ValidateData(const ProjectorAdjustmentData& data, const ProjectorAdjustme
       }
     }
   }
+  for (size_t l = 0; l < options.length_point_sets.size(); ++l) {
+    for (size_t e = 0; e < 2; ++e) {
+      const std::string field = "ProjectorAdjustmentOptions.length_point_sets[" + std::to_string(l) +
+                                "][" + std::to_string(e) + "]";
+      if (options.length_point_sets[l][e].empty()) return Status::InvalidArgument(field + " is empty");
+      for (int j : options.length_point_sets[l][e]) {
+        if (j < 0 || j >= static_cast<int>(b.points.size())) {
+          return Status::InvalidArgument(field + " names point " + std::to_string(j) +
+                                         ", not a bundle point index");
+        }
+      }
+    }
+  }
   return Status::Ok();
 }
 
@@ -498,6 +511,7 @@ Result<ProjectorAdjustmentResult> ProjectorAdjust(const ProjectorAdjustmentData&
     result.u_scale_factor *= sf;
     result.u_datum_length_mm *= sf;
     result.u_module_length_factor *= sf;
+    for (double& u : result.u_lengths_mm) u *= sf;
     result.covariance_method += "; scaled by the variance factor " + FormatNumber(f, 3);
   }
   return result;

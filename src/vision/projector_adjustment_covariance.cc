@@ -248,6 +248,16 @@ Status MoveToDatum(const Problem& pb, const ProjectorAdjustmentOptions& options,
     result->spot_depth_mm.push_back(pb.depths[k]);
   }
   result->datum_length_mm = (abc[1] - abc[0]).norm();
+  // The requested lengths: rigid invariants, the same in the solve's frame.
+  auto set_mean = [&](const std::vector<int>& set) {
+    Eigen::Vector3d m = Eigen::Vector3d::Zero();
+    for (int j : set) m += Vec(pb.points[static_cast<size_t>(j)]);
+    return Eigen::Vector3d(m / static_cast<double>(set.size()));
+  };
+  for (const auto& ends : options.length_point_sets) {
+    result->lengths_mm.push_back((set_mean(ends[1]) - set_mean(ends[0])).norm());
+    result->u_lengths_mm.push_back(0.0);
+  }
   if (options.unscaled_datum_length > 0.0) {
     result->scale_factor = result->datum_length_mm / options.unscaled_datum_length;
   }
@@ -319,6 +329,20 @@ Status MoveToDatum(const Problem& pb, const ProjectorAdjustmentOptions& options,
   result->u_datum_length_mm = std::sqrt(std::max(0.0, (g * cov.Sg * g.transpose())(0, 0)));
   if (options.unscaled_datum_length > 0.0) {
     result->u_scale_factor = result->u_datum_length_mm / options.unscaled_datum_length;
+  }
+  for (size_t l = 0; l < options.length_point_sets.size(); ++l) {
+    const auto& ends = options.length_point_sets[l];
+    const Eigen::Vector3d d = set_mean(ends[1]) - set_mean(ends[0]);
+    if (!(d.norm() > 0.0)) continue;
+    const Eigen::Vector3d along = d / d.norm();
+    Eigen::RowVectorXd gl = Eigen::RowVectorXd::Zero(nc);
+    for (size_t end = 0; end < 2; ++end) {
+      const double w = (end == 0 ? -1.0 : 1.0) / static_cast<double>(ends[end].size());
+      for (int j : ends[end]) {
+        gl.segment(cov.point_col[static_cast<size_t>(j)], 3) += w * along.transpose();
+      }
+    }
+    result->u_lengths_mm[l] = std::sqrt(std::max(0.0, (gl * cov.Sg * gl.transpose())(0, 0)));
   }
   if (cov.lambda_col >= 0) {
     result->u_module_length_factor = std::sqrt(std::max(0.0, cov.Sg(cov.lambda_col, cov.lambda_col)));

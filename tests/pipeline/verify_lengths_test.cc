@@ -302,7 +302,8 @@ TEST(VerifyLengths, CsvJsonAndPlotCarryTheRows) {
   const std::string csv = report->ToCsv();
   EXPECT_EQ(csv.substr(0, csv.find('\n')),
             "name,tag_1,tag_2,calibrated_mm,u_calibrated_mm,opl_mm,u_opl_mm,opl_error_mm,"
-            "opl_expanded_u_error_mm,bar_mm,u_bar_mm,bar_error_mm,bar_expanded_u_error_mm");
+            "opl_expanded_u_error_mm,bar_mm,u_bar_mm,bar_error_mm,bar_expanded_u_error_mm,"
+            "adjustment_mm,u_adjustment_mm,adjustment_error_mm,adjustment_expanded_u_error_mm");
   EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 4);
   EXPECT_THAT(csv, HasSubstr("\nx edge,0,1,1802.9,0.002,"));
   const nlohmann::json j = nlohmann::json::parse(report->ToJson());
@@ -317,19 +318,20 @@ TEST(VerifyLengths, CsvJsonAndPlotCarryTheRows) {
 
   const LinePlot plot = report->ToPlot("scene.json");
   EXPECT_THAT(plot.title, HasSubstr("scene.json"));
-  ASSERT_EQ(plot.panels.size(), 2u);  // both columns; the bar on its own scale
+  ASSERT_EQ(plot.panels.size(), 2u);  // every column; the small ones on their own scale
   const std::vector<PlotSeries>& series = plot.panels[0].series;
-  ASSERT_EQ(series.size(), 3u);  // OPL, bar, E = 0
+  ASSERT_EQ(series.size(), 4u);  // OPL, in the adjustment (none here), bar, E = 0
   // Drawn 1 % of the lengths' span (2705.2 - 1745.0) either side of L_cal.
   const double shift = 0.01 * (2705.2 - 1745.0);
   EXPECT_NEAR(series[0].x[1], 1802.9 - shift, 1e-9);
-  EXPECT_NEAR(series[1].x[1], 1802.9 + shift, 1e-9);
+  EXPECT_TRUE(std::isnan(series[1].y[0]));  // no adjustment column: an empty series keeps its colour
+  EXPECT_NEAR(series[2].x[1], 1802.9 + shift, 1e-9);
   EXPECT_DOUBLE_EQ(series[0].y[1], report->lengths[1].opl.error_mm);
-  EXPECT_DOUBLE_EQ(series[1].y_err[1], report->lengths[1].bar->expanded_u_error_mm);
-  EXPECT_EQ(series[2].y, std::vector<double>({0.0, 0.0}));
-  ASSERT_EQ(plot.panels[1].series.size(), 3u);
-  EXPECT_TRUE(std::isnan(plot.panels[1].series[0].y[0]));  // OPL left out, colours kept
-  EXPECT_EQ(plot.panels[1].series[1].y, series[1].y);
+  EXPECT_DOUBLE_EQ(series[2].y_err[1], report->lengths[1].bar->expanded_u_error_mm);
+  EXPECT_EQ(series[3].y, std::vector<double>({0.0, 0.0}));
+  ASSERT_EQ(plot.panels[1].series.size(), 4u);
+  EXPECT_TRUE(std::isnan(plot.panels[1].series[0].y[0]));  // OPL two-step left out, colours kept
+  EXPECT_EQ(plot.panels[1].series[2].y, series[2].y);
   EXPECT_TRUE(RenderLinePlotPng(plot).ok());
 }
 
@@ -368,6 +370,8 @@ VerifyReport RenderMeasureVerify(const Scene& scene, const std::string& name) {
   EXPECT_TRUE(calibration.ok());
   ImageMeasureOptions options;
   options.front_end.num_threads = 2;
+  options.front_end.scale_in_adjustment = true;  // the third column
+  options.projector_tag_lengths = CheckLengthTags(scene);
   Result<ImageMeasureReport> measured =
       MeasureScaleFromImages(scene, dir.string(), *calibration, options);
   EXPECT_TRUE(measured.ok()) << measured.status().ToString();
@@ -391,7 +395,13 @@ TEST(VerifyLengthsLab, NoiseFreeRenderMeasuresTheLengths) {
     EXPECT_LT(std::abs(r.opl.error_mm) / r.calibrated_mm, 5e-5);
     EXPECT_LT(std::abs(r.bar->error_mm) / r.calibrated_mm, 5e-5);
     EXPECT_GT(r.opl.expanded_u_error_mm, 0.0);
+    // In the adjustment: the metric scene straight from the module.
+    ASSERT_TRUE(r.projector.has_value());
+    EXPECT_LT(std::abs(r.projector->error_mm) / r.calibrated_mm, 5e-5);
+    EXPECT_GT(r.projector->expanded_u_error_mm, 0.0);
+    EXPECT_LT(r.projector->expanded_u_error_mm, r.opl.expanded_u_error_mm);
   }
+  ASSERT_TRUE(report.projector_scale_factor.has_value());
 }
 
 TEST(VerifyLengthsLab, NoisyRenderErrorsAreWithinTheirUncertainty) {
@@ -403,6 +413,8 @@ TEST(VerifyLengthsLab, NoisyRenderErrorsAreWithinTheirUncertainty) {
     SCOPED_TRACE(r.name);
     EXPECT_LT(std::abs(r.opl.error_mm), 2.0 * r.opl.expanded_u_error_mm);
     EXPECT_LT(std::abs(r.bar->error_mm), 2.0 * r.bar->expanded_u_error_mm);
+    ASSERT_TRUE(r.projector.has_value());
+    EXPECT_LT(std::abs(r.projector->error_mm), 2.0 * r.projector->expanded_u_error_mm);
     // U(E) is not vacuous: u(s) of this small scene is about 1 % at most.
     EXPECT_LT(r.opl.expanded_u_error_mm, 0.05 * r.calibrated_mm);
   }

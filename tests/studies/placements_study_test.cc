@@ -18,6 +18,7 @@
 // CI; `ctest -L study` runs 200); OPL_STUDY_CSV names a file for one row
 // per scene. docs/multiview.md, "Several placements", has the 200-scene
 // figures.
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -124,7 +125,7 @@ TEST(PlacementsStudy, BothPathsSideBySide) {
   ASSERT_TRUE(cal.ok());
   const int scenes = StudyScenes();
   const double unscaled_per_mm = 1.0 / 1037.0;
-  PathFigures two_step, projector;
+  PathFigures two_step, projector, check;
   std::ofstream csv;
   if (const char* path = std::getenv("OPL_STUDY_CSV"); path != nullptr && *path != '\0') {
     csv.open(path);
@@ -139,8 +140,24 @@ TEST(PlacementsStudy, BothPathsSideBySide) {
     ProjectorAdjustmentOptions options;
     options.datum_point_sets = c.datum_sets;
     options.unscaled_datum_length = two->unscaled_datum_length;
+    // A check length across the wall: tag 6 to tag 3 (centres, four
+    // corners each), about 1.7 m; its u from the full covariance
+    // (length_point_sets) against its true length.
+    std::array<std::vector<int>, 2> ends;
+    for (size_t j = 0; j < c.point_tag.size(); ++j) {
+      if (c.point_tag[j].first == 6) ends[0].push_back(static_cast<int>(j));
+      if (c.point_tag[j].first == 3) ends[1].push_back(static_cast<int>(j));
+    }
+    ASSERT_EQ(ends[0].size(), 4u);
+    ASSERT_EQ(ends[1].size(), 4u);
+    options.length_point_sets = {ends};
     Result<ProjectorAdjustmentResult> r = ProjectorAdjust(c.start, options);
     ASSERT_TRUE(r.ok()) << "seed " << seed << ": " << r.status().ToString();
+    Eigen::Vector3d t6 = Eigen::Vector3d::Zero(), t3 = Eigen::Vector3d::Zero();
+    for (int j : ends[0]) t6 += c.truth.bundle.points[static_cast<size_t>(j)].point_in_scene / 4.0;
+    for (int j : ends[1]) t3 += c.truth.bundle.points[static_cast<size_t>(j)].point_in_scene / 4.0;
+    const double true_length = (t3 - t6).norm();
+    check.Add(r->lengths_mm[0] / true_length - 1.0, r->u_lengths_mm[0] / true_length);
     const double s_true = TrueDatumLength(c) / two->unscaled_datum_length;
     const ScaleResult& s2 = two->report.measure.scale;
     two_step.Add(s2.scale_factor / s_true - 1.0, s2.u_scale_factor / s_true);
@@ -154,12 +171,14 @@ TEST(PlacementsStudy, BothPathsSideBySide) {
   std::cout << scenes << " scenes, two placements (relative to s):\n"
             << two_step.Line("two-step") << "\n"
             << projector.Line("projector") << "\n"
+            << check.Line("check 6-3") << " (the projector's tag 6 to tag 3, "
+            << "relative; u(1 m) column: its relative u times 1 m)\n"
             << "gain in u(s): " << two_step.MeanU() / projector.MeanU()
             << "x, in RMS error: " << two_step.Rms() / projector.Rms() << "x\n";
   // The RMS of n normal errors scatters by about 1/sqrt(2n) of itself: the
   // bounds are 3.5 of those around 1 (20 scenes: 0.45-1.55; 200: 0.83-1.17).
   const double band = 3.5 / std::sqrt(2.0 * scenes);
-  for (const PathFigures* f : {&two_step, &projector}) {
+  for (const PathFigures* f : {&two_step, &projector, &check}) {
     EXPECT_GT(f->Rms() / f->MeanU(), 1.0 - band);
     EXPECT_LT(f->Rms() / f->MeanU(), 1.0 + band);
   }
@@ -171,6 +190,8 @@ TEST(PlacementsStudy, BothPathsSideBySide) {
     EXPECT_LE(two_step.Coverage(), 0.98);
     EXPECT_GE(projector.Coverage(), 0.92);
     EXPECT_LE(projector.Coverage(), 0.98);
+    EXPECT_GE(check.Coverage(), 0.92);
+    EXPECT_LE(check.Coverage(), 0.98);
   }
 }
 

@@ -60,6 +60,11 @@ struct ImageMeasureOptions {
   // standard deviation of each shared component (2 m re-solves, m = 9 + 6
   // per camera): u(s)^2 = u_own^2 + sum_k g_k^2.
   bool propagate_shared_errors = true;
+  // With FrontEndOptions::scale_in_adjustment: tag-to-tag lengths (pairs of
+  // tag ids, centre to centre) the projector adjustment reports in mm with
+  // their uncertainty (ProjectorAdjustmentResult::lengths_mm, in this
+  // order), e.g. opl_verify's check lengths.
+  std::vector<std::pair<int, int>> projector_tag_lengths;
 
   Status Validate() const;
 };

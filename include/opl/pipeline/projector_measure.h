@@ -21,6 +21,9 @@
 // those of ProjectorAdjust.
 #pragma once
 
+#include <utility>
+#include <vector>
+
 #include "opl/core/status.h"
 #include "opl/model/module_calibration.h"
 #include "opl/vision/projector_adjustment.h"
@@ -30,14 +33,18 @@ namespace opl {
 struct ImageMeasureReport;
 
 // The projector adjustment's input built from a two-step report (header
-// comment); options.datum_point_sets and unscaled_datum_length are set.
-Result<ProjectorAdjustmentData> ProjectorDataFromTwoStep(const ImageMeasureReport& two_step,
-                                                         const ModuleCalibration& calibration,
-                                                         ProjectorAdjustmentOptions* options);
+// comment); options.datum_point_sets and unscaled_datum_length are set, and
+// options.length_point_sets to the centres (four corners) of each pair of
+// `tag_lengths` (tag ids; InvalidArgument naming a tag the adjustment does
+// not hold).
+Result<ProjectorAdjustmentData> ProjectorDataFromTwoStep(
+    const ImageMeasureReport& two_step, const ModuleCalibration& calibration,
+    ProjectorAdjustmentOptions* options, const std::vector<std::pair<int, int>>& tag_lengths = {});
 
 // ProjectorDataFromTwoStep then ProjectorAdjust.
 Result<ProjectorAdjustmentResult> AdjustScaleWithProjector(
     const ImageMeasureReport& two_step, const ModuleCalibration& calibration,
-    ProjectorAdjustmentOptions options = ProjectorAdjustmentOptions());
+    ProjectorAdjustmentOptions options = ProjectorAdjustmentOptions(),
+    const std::vector<std::pair<int, int>>& tag_lengths = {});
 
 }  // namespace opl

@@ -9,13 +9,20 @@
 //   Result<VerifyReport> v = VerifyLengths(scene, *m);
 //   std::cout << v->ToText();
 //
-// Two columns, from the same adjusted (unscaled) scene:
+// Three columns, from the same photographs:
 //  - OPL: the scene scaled by the laser module alone, s = the two-step
 //    measurement's (ImageMeasureReport::measure.scale): L = s d, d the
 //    distance of the two tag centres in the unscaled scene;
 //  - bar: the same scene scaled by the scene's artifact (Scene::artifact,
 //    a conventional scale bar), s_bar = L_bar / d_bar: L = s_bar d.
-//    Absent when the scene has no artifact or its tags were not adjusted.
+//    Absent when the scene has no artifact or its tags were not adjusted;
+//  - OPL in the adjustment: the scene scaled inside the bundle adjustment by
+//    the module as a calibrated projector (ImageMeasureReport::projector,
+//    FrontEndOptions::scale_in_adjustment), the lengths asked for by
+//    ImageMeasureOptions::projector_tag_lengths = the check lengths' tags in
+//    scene order (CheckLengthTags): L and u(L) straight from the metric
+//    adjustment and its full covariance. Absent when the measurement ran
+//    without it.
 //
 // Uncertainties (first order, k = 1, then U = 2 u): a length L is a function
 // of s (or L_bar) and of the tag centres; its error is
@@ -44,6 +51,7 @@
 #include <cmath>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "opl/core/status.h"
@@ -72,6 +80,7 @@ struct CheckLengthResult {
   double unscaled = 0.0;         // d, scene units
   ScaledLength opl;
   std::optional<ScaledLength> bar;
+  std::optional<ScaledLength> projector;  // OPL in the adjustment
 };
 
 struct VerifyReport {
@@ -88,6 +97,10 @@ struct VerifyReport {
   // Largest |E| and RMS E of each column (the bar's 0 when absent).
   double max_abs_error_opl_mm = 0.0, rms_error_opl_mm = 0.0;
   double max_abs_error_bar_mm = 0.0, rms_error_bar_mm = 0.0;
+  // OPL in the adjustment, when the measurement ran it.
+  std::optional<double> projector_scale_factor;
+  double u_projector_scale_factor = 0.0;
+  double max_abs_error_projector_mm = 0.0, rms_error_projector_mm = 0.0;
 
   // A table: one row per length (name, tags, L_cal, then per column L, E,
   // U(E)), the summary and the warnings.
@@ -109,6 +122,10 @@ struct VerifyReport {
 // "check_lengths: the scene lists no check length ...". opl_verify asks it
 // before reading any image; VerifyLengths refuses such a scene the same way.
 Status CheckSceneHasCheckLengths(const Scene& scene);
+
+// The check lengths' tag pairs in scene order: what
+// ImageMeasureOptions::projector_tag_lengths must be for the third column.
+std::vector<std::pair<int, int>> CheckLengthTags(const Scene& scene);
 
 Result<VerifyReport> VerifyLengths(const Scene& scene, const ImageMeasureReport& measured);
 

@@ -128,6 +128,12 @@ struct ProjectorAdjustmentOptions {
   // |B - A| of the unscaled solution (its units); > 0 gives s and u(s),
   // 0 leaves them 0.
   double unscaled_datum_length = 0.0;
+  // Lengths to report with their uncertainty (e.g. check lengths between
+  // tag centres, opl_verify): each the distance between the means of two
+  // sets of bundle points (every set non-empty, indices valid), in mm, with
+  // u from the full covariance (the two ends' correlation kept; a length
+  // does not depend on the datum).
+  std::vector<std::array<std::vector<int>, 2>> length_point_sets;
   // Which parts of the calibration are adjusted under their prior (when the
   // calibration gives their uncertainty); false holds them.
   bool adjust_beams = true;
@@ -160,6 +166,10 @@ struct ProjectorAdjustmentResult {
   double u_scale_factor = 0.0;
   double datum_length_mm = 0.0;
   double u_datum_length_mm = 0.0;
+  // Per options.length_point_sets: the length (mm) and its standard
+  // uncertainty (0 when the covariances were not computed).
+  std::vector<double> lengths_mm;
+  std::vector<double> u_lengths_mm;
 
   // First-order covariances in the datum frame (mm^2), when computed: per
   // bundle point, per camera (its centre), per placement (the module

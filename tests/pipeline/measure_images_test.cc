@@ -48,16 +48,17 @@ Scene SmallScene() {
   return std::move(scene).value();
 }
 
-// The same, noise-free: no sensor noise, no speckle, 16 bit (no visible
+// A scene made noise-free: no sensor noise, no speckle, 16 bit (no visible
 // quantisation).
-Scene NoiseFreeSmallScene() {
-  Scene scene = SmallScene();
+Scene NoiseFree(Scene scene) {
   scene.image.read_noise = 0.0;
   scene.image.gain_e_per_dn = 0.0;
   scene.image.bit_depth = 16;
   scene.spots.speckle_contrast = 0.0;
   return scene;
 }
+
+Scene NoiseFreeSmallScene() { return NoiseFree(SmallScene()); }
 
 TEST(MeasureScaleFromImages, NoiseFreeRenderGivesTheTrueScale) {
   Scene scene = NoiseFreeSmallScene();
@@ -245,11 +246,7 @@ TEST(MeasureScaleFromImages, BadInputNamesTheFile) {
 TEST(MeasureScaleFromImages, ModuleAtTwoPlacements) {
   Result<Scene> read = ReadSceneJson(SourceDir() + "/examples/scene_small_placements.json");
   ASSERT_TRUE(read.ok()) << read.status().ToString();
-  Scene scene = *read;
-  scene.image.read_noise = 0.0;
-  scene.image.gain_e_per_dn = 0.0;
-  scene.image.bit_depth = 16;
-  scene.spots.speckle_contrast = 0.0;
+  const Scene scene = NoiseFree(*read);
   const std::filesystem::path dir = FreshTempDir("measure_images_placements");
   const SceneRenderer truth = RenderAll(scene, dir);
   Result<ModuleCalibration> calibration = ExactCalibration(*scene.module);

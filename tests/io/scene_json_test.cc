@@ -382,7 +382,7 @@ TEST(SceneJson, ModulePlacementsAreReadCheckedAndWrittenBack) {
   const Rigid3d move = scene->module_placements[1].SceneFromDesign(*scene->module);
   EXPECT_LT((move * Eigen::Vector3d(10, 0, 0) - Eigen::Vector3d(0, 310, -50)).norm(), 1e-12);
   EXPECT_LT((scene->module_placements[0].SceneFromDesign(*scene->module) * Eigen::Vector3d(1, 2, 3) -
-             Eigen::Vector3d(1, 2, 3)).norm(), 0.0 + 1e-15);
+             Eigen::Vector3d(1, 2, 3)).norm(), 1e-15);
   // Back through the measurement scene writer.
   Result<Scene> back = ParseSceneJson(FormatMeasurementSceneJson(*scene, "", ""), "back.json", "",
                                       SceneUse::kMeasure);

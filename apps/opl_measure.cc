@@ -45,7 +45,7 @@ struct Args {
   std::string colmap_out_dir;
   int threads = 0;
   bool one_pose_per_camera = false;
-  bool scale_in_adjustment = false;
+  bool no_scale_in_adjustment = false;
   opl::cli::ImageRunArgs image_run;  // --spot-channel, --force, --verbose
 };
 
@@ -151,7 +151,7 @@ int RunImages(const Args& args, int argc, char** argv) {
   ImageMeasureOptions options;
   options.front_end.num_threads = args.threads;
   options.front_end.one_pose_per_camera = args.one_pose_per_camera;
-  options.front_end.scale_in_adjustment = args.scale_in_adjustment;
+  options.front_end.scale_in_adjustment = !args.no_scale_in_adjustment;
   cli::ApplyImageRunOptions(args.image_run, &options.front_end);
   cli::ProgressBar bar("images", cli::StderrIsTerminal());
   options.front_end.progress = bar.StageCallback("detect");
@@ -195,7 +195,7 @@ int RunImages(const Args& args, int argc, char** argv) {
   }
   if (!args.apply_path.empty()) {
     if (std::optional<int> code =
-            ApplyScale(args, report->measure.scale.scale_factor, &outputs, &provenance)) {
+            ApplyScale(args, report->scale_factor, &outputs, &provenance)) {
       return *code;
     }
   }
@@ -205,7 +205,7 @@ int RunImages(const Args& args, int argc, char** argv) {
     }
   }
   if (colmap && !args.colmap_out_dir.empty()) {
-    const double s = report->measure.scale.scale_factor;
+    const double s = report->scale_factor;
     const ColmapModel scaled = ScaledColmapModel(*colmap, s);
     Result<std::string> ply = StampProvenance("points3D.ply", FormatColmapPointsPly(scaled), provenance);
     Result<std::string> json = StampProvenance(
@@ -256,8 +256,12 @@ int Run(int argc, char** argv) {
       "AprilTag (tag36h11) targets and laser spots are detected in every image, the\n"
       "cameras posed from the tags, the spots matched across views and everything refined\n"
       "in one bundle adjustment (docs/images.md); the 3D spots are then identified and\n"
-      "measured as above. A per-image report (tags, spots detected and matched, RMS)\n"
-      "comes first; progress is shown on a terminal. --spots-out writes the 3D spots.\n",
+      "measured as above (the two-step s). Then the module enters the adjustment as a\n"
+      "calibrated projector and the scale comes out of the adjustment itself: that s is\n"
+      "the result (the last line, JSON 'scale_factor', what --apply uses) unless\n"
+      "--no-scale-in-adjustment; the report says which s it gives and why. A per-image\n"
+      "report (tags, spots detected and matched, RMS) comes first; progress is shown on\n"
+      "a terminal. --spots-out writes the 3D spots (unscaled).\n",
       kTool);
   app.add_option("--calibration", args.calibration_path,
                  "Module calibration JSON (docs/formats.md, 'Module calibration JSON')")
@@ -294,12 +298,14 @@ int Run(int argc, char** argv) {
                "untouched for the whole session); refused when a camera's shots place it\n"
                "more than 5 mm or 2 mrad apart (docs/images.md)")
       ->needs(images);
-  app.add_flag("--scale-in-adjustment", args.scale_in_adjustment,
-               "With --images: after the two-step measurement, adjust again with the module as\n"
-               "a calibrated projector (each spot a depth along its calibrated beam, the\n"
-               "calibration a prior): the scene comes out in mm and s with its u(s) from that\n"
-               "adjustment, in the report's 'projector' part (docs/multiview.md, 'The\n"
-               "projector model'). Not with --colmap")
+  app.add_flag("--no-scale-in-adjustment", args.no_scale_in_adjustment,
+               "With --images: report the two-step s (the unscaled adjustment, then the\n"
+               "located sources) instead of the default, the scale inside the adjustment: after\n"
+               "the two-step measurement the module enters the adjustment again as a calibrated\n"
+               "projector (each spot a depth along its calibrated beam, the calibration a\n"
+               "prior), and its s and u(s) are the result, about 30 times more precise\n"
+               "(docs/multiview.md, 'The projector model'). With --colmap the two-step s is\n"
+               "used anyway (the COLMAP path keeps no adjustment of its own)")
       ->needs(images);
   CLI::Option* colmap_option =
       app.add_option("--colmap", args.colmap_dir,

@@ -139,10 +139,8 @@ int Run(int argc, char** argv) {
   ImageMeasureOptions options;
   options.front_end.num_threads = args.threads;
   options.front_end.one_pose_per_camera = args.one_pose_per_camera;
-  if (!args.no_scale_in_adjustment) {
-    options.front_end.scale_in_adjustment = true;
-    options.projector_tag_lengths = CheckLengthTags(*scene);
-  }
+  options.front_end.scale_in_adjustment = !args.no_scale_in_adjustment;
+  if (!args.no_scale_in_adjustment) options.projector_tag_lengths = CheckLengthTags(*scene);
   cli::ApplyImageRunOptions(args.image_run, &options.front_end);
   cli::ProgressBar bar("images", cli::StderrIsTerminal());
   options.front_end.progress = bar.StageCallback("detect");

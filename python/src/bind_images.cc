@@ -97,6 +97,9 @@ void BindImages(py::module_& m) {
       .def_readwrite("rescale_spot_covariances", &FO::rescale_spot_covariances)
       .def_readwrite("one_pose_per_camera", &FO::one_pose_per_camera)
       .def_readwrite("use_dark_frames", &FO::use_dark_frames)
+      .def_readwrite("scale_in_adjustment", &FO::scale_in_adjustment,
+                     "The module as a calibrated projector in the adjustment, its s the "
+                     "report's s (default True; docs/multiview.md).")
       .def_readwrite("num_threads", &FO::num_threads, "0: every core.");
   using IO = opl::ImageMeasureOptions;
   py::class_<IO>(m, "ImageMeasureOptions")
@@ -117,9 +120,19 @@ void BindImages(py::module_& m) {
           "The 3D spots (scene frame, unscaled) with their covariances.")
       .def_readonly("identification", &IR::identification)
       .def_readonly("measure", &IR::measure)
-      .def_property_readonly("s", [](const IR& r) { return r.measure.scale.scale_factor; })
-      .def_property_readonly("u_s", [](const IR& r) { return r.measure.scale.u_scale_factor; },
-                             "u(s) including the errors the spots share (cameras, frame tags).")
+      .def_readonly("s", &IR::scale_factor,
+                    "The reported s (what opl_measure prints last): the scale inside the "
+                    "adjustment, or the two-step s (scale_method says which).")
+      .def_readonly("u_s", &IR::u_scale_factor, "u(s) of the reported s.")
+      .def_property_readonly("scale_method",
+                             [](const IR& r) { return std::string(opl::ScaleMethodName(r.scale_method)); },
+                             "'adjustment' or 'two-step'.")
+      .def_readonly("scale_method_note", &IR::scale_method_note,
+                    "Why the two-step s is reported (empty when it is not).")
+      .def_property_readonly("two_step_s", [](const IR& r) { return r.measure.scale.scale_factor; },
+                             "The two-step s (also measure.scale.scale_factor).")
+      .def_property_readonly("two_step_u_s", [](const IR& r) { return r.measure.scale.u_scale_factor; },
+                             "Its u(s), including the errors the spots share (cameras, frame tags).")
       .def_readonly("u_scale_factor_own", &IR::u_scale_factor_own)
       .def_readonly("u_scale_factor_shared", &IR::u_scale_factor_shared)
       .def_readonly("metadata_conflicts", &IR::metadata_conflicts)

@@ -90,7 +90,10 @@ def test_scale_from_rendered_images(examples, apps_dir, tmp_path):
     options = opl.ImageMeasureOptions()
     options.front_end.num_threads = 2
     report = opl.measure_scale_from_images(scene, str(images), calibration, options)
-    assert 0.002 < report.u_s < 0.05
+    assert 0.002 < report.two_step_u_s < 0.05
+    # The reported s is the scale inside the adjustment, 5 times more precise or better.
+    assert report.scale_method == "adjustment" and report.scale_method_note == ""
+    assert 0 < 5 * report.u_s < report.two_step_u_s
     spots = report.spots
     assert len(spots) > 200 and spots.assigned.all()
 
@@ -105,16 +108,20 @@ def test_scale_from_rendered_images(examples, apps_dir, tmp_path):
     residual = Y - s_truth * X @ (U @ D @ Vt).T
     assert np.sqrt(np.mean(np.sum(residual**2, 1))) < 1.0  # spots placed to under a mm
     assert abs(report.s - s_truth) < 3 * report.u_s
+    assert abs(report.two_step_s - s_truth) < 3 * report.two_step_u_s
 
     cal_path = tmp_path / "cal.json"
     opl.write_module_calibration(calibration, str(cal_path))
     out = subprocess.run([str(apps_dir / "opl_measure"), "--calibration", str(cal_path), "--images", str(images),
                           "--scene", str(examples / "scene_small.json"), "--threads", "2", "--json"],
                          check=True, capture_output=True, text=True).stdout
-    cli = json.loads(out)["measure"]
+    cli = json.loads(out)
+    assert cli["scale_method"] == "adjustment"
     assert cli["scale_factor"] == pytest.approx(report.s, rel=1e-9)
-    assert cli["u_scale_factor"] == pytest.approx(report.u_s, rel=1e-9)
-    assert json.loads(report.to_json())["measure"]["scale_factor"] == pytest.approx(report.s, rel=1e-15)
+    assert cli["u_scale_factor"] == pytest.approx(report.u_s, rel=1e-6)
+    assert cli["measure"]["scale_factor"] == pytest.approx(report.two_step_s, rel=1e-9)
+    assert cli["measure"]["u_scale_factor"] == pytest.approx(report.two_step_u_s, rel=1e-9)
+    assert json.loads(report.to_json())["scale_factor"] == pytest.approx(report.s, rel=1e-15)
 
 
 def test_missing_image_names_the_file(examples, tmp_path):

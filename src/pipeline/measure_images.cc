@@ -21,6 +21,10 @@ Status ImageMeasureOptions::Validate() const {
   return measure.Validate();
 }
 
+const char* ScaleMethodName(ScaleMethod method) {
+  return method == ScaleMethod::kAdjustment ? "adjustment" : "two-step";
+}
+
 std::string ImageMeasureReport::ToText() const {
   std::ostringstream out;
   out << front_end.ToText();
@@ -36,6 +40,14 @@ std::string ImageMeasureReport::ToText() const {
   }
   for (const std::string& c : metadata_conflicts) out << "warning: " << c << "\n";
   if (projector) out << "\nthe scale inside the adjustment:\n" << projector->Report();
+  out << "\nResult: s = " << FormatPrintf("%.9f", scale_factor) << " +- "
+      << FormatPrintf("%.9f", u_scale_factor) << " mm per scene unit ("
+      << FormatPrintf("%.1f", u_scale_factor / scale_factor * 1e6) << " ppm, k = 1; U = "
+      << FormatPrintf("%.9f", 2.0 * u_scale_factor) << " at k = 2), "
+      << (scale_method == ScaleMethod::kAdjustment
+              ? std::string("the scale inside the adjustment (the two-step s above for comparison)")
+              : "the two-step s above: " + scale_method_note)
+      << "\n";
   return out.str();
 }
 
@@ -44,6 +56,10 @@ std::string ImageMeasureReport::ToJson() const {
   ordered_json doc;
   doc["format"] = "opl.image_measure_report";
   doc["version"] = 1;
+  doc["scale_factor"] = scale_factor;
+  doc["u_scale_factor"] = u_scale_factor;
+  doc["scale_method"] = ScaleMethodName(scale_method);
+  doc["scale_method_note"] = scale_method_note;
   ordered_json images = ordered_json::array();
   for (const ImageFindings& f : front_end.images) {
     images.push_back({{"file", f.file},
@@ -282,13 +298,31 @@ Result<ImageMeasureReport> MeasureScaleFromFrontEnd(FrontEndResult front_end,
     }
   }
   report.measure = std::move(*measure);
-  if (options.front_end.scale_in_adjustment) {
+  report.scale_factor = report.measure.scale.scale_factor;
+  report.u_scale_factor = report.measure.scale.u_scale_factor;
+  report.scale_method = ScaleMethod::kTwoStep;
+  if (!options.front_end.scale_in_adjustment) {
+    report.scale_method_note = "the scale inside the adjustment was not asked for";
+  } else if (report.front_end.adjustment.cameras.empty()) {
+    report.scale_method_note =
+        "the scale inside the adjustment needs the front end's own adjustment, which the COLMAP "
+        "path does not keep";
+  } else {
     ProjectorAdjustmentOptions projector_options;
     projector_options.num_threads = std::max(1, options.front_end.num_threads);
     Result<ProjectorAdjustmentResult> projector =
         AdjustScaleWithProjector(report, calibration, projector_options, options.projector_tag_lengths);
-    if (!projector.ok()) return projector.status();
-    report.projector = std::move(*projector);
+    if (projector.ok()) {
+      report.projector = std::move(*projector);
+      report.scale_factor = report.projector->scale_factor;
+      report.u_scale_factor = report.projector->u_scale_factor;
+      report.scale_method = ScaleMethod::kAdjustment;
+    } else {
+      report.projector_status = projector.status();
+      report.scale_method_note = "the scale inside the adjustment failed (" +
+                                 projector.status().message() + ")";
+      report.front_end.warnings.push_back(report.scale_method_note + "; s is the two-step s");
+    }
   }
   return report;
 }

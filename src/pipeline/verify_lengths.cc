@@ -152,6 +152,9 @@ Result<VerifyReport> VerifyLengths(const Scene& scene, const ImageMeasureReport&
           "no column for the scale inside the adjustment: it was not asked for the check lengths "
           "(ImageMeasureOptions::projector_tag_lengths = CheckLengthTags(scene))");
     }
+  } else if (!measured.projector_status.ok()) {
+    report.warnings.push_back("no column for the scale inside the adjustment: " +
+                              measured.scale_method_note);
   }
 
   for (const SceneCheckLength& check : scene.check_lengths) {

@@ -15,6 +15,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "cli_test_util.h"
+#include "opl/core/format.h"
 
 namespace opl {
 namespace {
@@ -68,31 +69,47 @@ TEST(ImagesCli, SimulateThenMeasure) {
     EXPECT_GT(image["spots_matched"].get<int>(), 60) << image["file"];
   }
   // The scene's unit is the nominal tag size's, which is the true size: s is
-  // 1 within its uncertainty (speckled spots: about 1% for this small scene).
+  // 1 within its uncertainty. The two-step s (speckled spots: about 1% for
+  // this small scene) is in "measure"; the reported s is, by default, the
+  // scale inside the adjustment: within 3 of its u of the truth (1), and at
+  // least 5 times more precise than the two-step s on this scene (measured:
+  // 0.00037 against 0.0135).
   const double s = report["measure"]["scale_factor"].get<double>();
   const double u = report["measure"]["u_scale_factor"].get<double>();
   EXPECT_GT(u, 1e-4);
   EXPECT_LT(u, 0.02);
   EXPECT_NEAR(s, 1.0, 3.0 * u);
+  EXPECT_EQ(report["scale_method"], "adjustment");
+  EXPECT_EQ(report["scale_method_note"], "");
+  ASSERT_TRUE(report.contains("projector")) << r.out;
+  const double sp = report["scale_factor"].get<double>();
+  const double up = report["u_scale_factor"].get<double>();
+  EXPECT_EQ(sp, report["projector"]["scale_factor"].get<double>());
+  EXPECT_EQ(up, report["projector"]["u_scale_factor"].get<double>());
+  EXPECT_GT(up, 0.0);
+  EXPECT_NEAR(sp, 1.0, 3.0 * up);
+  EXPECT_LT(5.0 * up, u);
   std::ifstream in(spots_out);
   std::string header;
   while (std::getline(in, header) && header.rfind("# opl ", 0) == 0) {
   }  // the provenance lines first
   EXPECT_EQ(header.rfind("source,beam,x,y,z", 0), 0u) << header;
 
-  // --scale-in-adjustment: the projector adjustment's s, within 3 of its u of
-  // the truth (1), and at least 5 times more precise than the two-step s on
-  // this scene (measured: 0.00037 against 0.0135).
+  // --no-scale-in-adjustment: the two-step s is the result, the same as
+  // above (the same images, the same two-step path), and the text says so.
   r = Measure("--calibration " + calibration + " --images " + shots + " --scene " + kScene +
-              " --scale-in-adjustment --json");
+              " --no-scale-in-adjustment --json");
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  const nlohmann::json joint = nlohmann::json::parse(r.out);
-  ASSERT_TRUE(joint.contains("projector")) << r.out;
-  const double sp = joint["projector"]["scale_factor"].get<double>();
-  const double up = joint["projector"]["u_scale_factor"].get<double>();
-  EXPECT_GT(up, 0.0);
-  EXPECT_NEAR(sp, 1.0, 3.0 * up);
-  EXPECT_LT(5.0 * up, joint["measure"]["u_scale_factor"].get<double>());
+  const nlohmann::json two_step = nlohmann::json::parse(r.out);
+  EXPECT_FALSE(two_step.contains("projector"));
+  EXPECT_EQ(two_step["scale_method"], "two-step");
+  EXPECT_THAT(two_step["scale_method_note"].get<std::string>(), HasSubstr("not asked for"));
+  EXPECT_EQ(two_step["scale_factor"].get<double>(), two_step["measure"]["scale_factor"].get<double>());
+  EXPECT_NEAR(two_step["scale_factor"].get<double>(), s, 1e-12);
+  r = Measure("--calibration " + calibration + " --images " + shots + " --scene " + kScene);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_THAT(r.out, HasSubstr("Result: s = " + FormatPrintf("%.9f", sp)));
+  EXPECT_THAT(r.out, HasSubstr("the scale inside the adjustment (the two-step s above"));
 }
 
 TEST(ImagesCli, UsageErrors) {

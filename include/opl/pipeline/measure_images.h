@@ -69,6 +69,14 @@ struct ImageMeasureOptions {
   Status Validate() const;
 };
 
+// Where an image measurement's s comes from (ImageMeasureReport::scale_method).
+enum class ScaleMethod {
+  kAdjustment,  // the module as a calibrated projector inside the adjustment
+  kTwoStep,     // the unscaled adjustment, then the located sources
+};
+// "adjustment", "two-step".
+const char* ScaleMethodName(ScaleMethod method);
+
 struct ImageMeasureReport {
   FrontEndResult front_end;
   // The 3D spots, front-end order, with the source and beam they were
@@ -97,11 +105,25 @@ struct ImageMeasureReport {
   // started from this two-step solution (pipeline/projector_measure.h):
   // cameras and tags in mm, s and u(s) of the scale inside the adjustment.
   std::optional<ProjectorAdjustmentResult> projector;
+  // The scale factor this report gives: opl_measure's headline s, the one
+  // --apply and Python's report.s use. The projector adjustment's s and
+  // u(s) when it ran; else the two-step s and u(s) of `measure`, with
+  // scale_method_note saying why (the option off; the COLMAP path, which
+  // keeps no adjustment of its own; or the adjustment's error).
+  double scale_factor = 0.0;
+  double u_scale_factor = 0.0;
+  ScaleMethod scale_method = ScaleMethod::kTwoStep;
+  std::string scale_method_note;
+  // The projector adjustment's error when it was asked for and failed (the
+  // report then gives the two-step s, with a warning); OK otherwise.
+  Status projector_status;
 
-  // The front end's report, each group's identification, the measurement,
-  // then the conflicts.
+  // The front end's report, each group's identification, the two-step
+  // measurement, the conflicts, the projector adjustment, then the
+  // reported s and where it comes from.
   std::string ToText() const;
-  // {"format": "opl.image_measure_report", "version": 1, "images": [...],
+  // {"format": "opl.image_measure_report", "version": 1, "scale_factor",
+  //  "u_scale_factor", "scale_method", "scale_method_note", "images": [...],
   //  "exposure_groups": [...], "frame_tags": [...], "rms_reprojection_px",
   //  "variance_factor", "spot_variance_factor", "spot_extra_sigma_px",
   //  "tag_variance_factor", "tag_extra_sigma_px", "u_scale_factor_own",

@@ -140,6 +140,14 @@ TEST(ColmapMeasure, ColmapModelOfLabImagesGivesTheTrueScale) {
             << (s - true_scale) / u << " u\n";
   EXPECT_GT(u, 0.0);
   EXPECT_LT(std::abs(s - true_scale), 3.0 * u);
+  // The scale inside the adjustment (the default) needs the tag path's own
+  // adjustment: the report gives the two-step s and says why, with no warning.
+  EXPECT_FALSE(report->projector.has_value());
+  EXPECT_TRUE(report->projector_status.ok());
+  EXPECT_EQ(report->scale_method, ScaleMethod::kTwoStep);
+  EXPECT_EQ(report->scale_factor, s);
+  EXPECT_EQ(report->u_scale_factor, u);
+  EXPECT_THAT(report->scale_method_note, ::testing::HasSubstr("COLMAP path does not keep"));
 
   // The scaled model, in the format read; COLMAP reads it.
   const std::string out = (dir / "scaled").string();

@@ -10,9 +10,11 @@
 #include <cmath>
 #include <iostream>
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "opl/core/format.h"
 #include "opl/io/scene_json.h"
 #include "opl/pipeline/measure_images.h"
 #include "opl/pipeline/projector_measure.h"
@@ -39,7 +41,6 @@ TEST(ScaleInAdjustment, NoiseFreeRenderAgreesWithTheTruthAndTheTwoStepPath) {
   ASSERT_TRUE(calibration.ok());
   ImageMeasureOptions options;
   options.front_end.num_threads = 2;
-  options.front_end.scale_in_adjustment = true;
   Result<ImageMeasureReport> report = MeasureScaleFromImages(scene, dir.string(), *calibration, options);
   ASSERT_TRUE(report.ok()) << report.status().ToString();
   ASSERT_TRUE(report->projector.has_value());
@@ -91,6 +92,41 @@ TEST(ScaleInAdjustment, NoiseFreeRenderAgreesWithTheTruthAndTheTwoStepPath) {
   EXPECT_LT(worst, 0.1);
   const nlohmann::json doc = nlohmann::json::parse(report->ToJson());
   EXPECT_DOUBLE_EQ(doc.at("projector").at("scale_factor").get<double>(), p.scale_factor);
+  // The reported s is the adjustment's.
+  EXPECT_EQ(report->scale_method, ScaleMethod::kAdjustment);
+  EXPECT_EQ(report->scale_factor, p.scale_factor);
+  EXPECT_EQ(report->u_scale_factor, p.u_scale_factor);
+  EXPECT_EQ(doc.at("scale_method").get<std::string>(), "adjustment");
+  EXPECT_TRUE(report->projector_status.ok());
+  EXPECT_EQ(report->front_end.warnings.size(), 0u);
+
+  // Fallbacks on the same front end. Not asked for: the two-step s, said so.
+  ImageMeasureOptions off = options;
+  off.front_end.scale_in_adjustment = false;
+  Result<ImageMeasureReport> two_step = MeasureScaleFromFrontEnd(report->front_end, *calibration, off);
+  ASSERT_TRUE(two_step.ok()) << two_step.status().ToString();
+  EXPECT_FALSE(two_step->projector.has_value());
+  EXPECT_EQ(two_step->scale_method, ScaleMethod::kTwoStep);
+  EXPECT_EQ(two_step->scale_factor, s_two);
+  EXPECT_EQ(two_step->u_scale_factor, report->measure.scale.u_scale_factor);
+  EXPECT_THAT(two_step->scale_method_note, ::testing::HasSubstr("not asked for"));
+  // Failed (a frame tag's corners missing from the kept adjustment): the
+  // two-step s, the error in the note and as a warning, not a failed run.
+  FrontEndResult broken = report->front_end;
+  broken.tag_first_point.erase(broken.frame_tags[1]);
+  Result<ImageMeasureReport> fallback = MeasureScaleFromFrontEnd(broken, *calibration, options);
+  ASSERT_TRUE(fallback.ok()) << fallback.status().ToString();
+  EXPECT_FALSE(fallback->projector.has_value());
+  EXPECT_EQ(fallback->scale_method, ScaleMethod::kTwoStep);
+  EXPECT_EQ(fallback->scale_factor, s_two);
+  EXPECT_FALSE(fallback->projector_status.ok());
+  EXPECT_THAT(fallback->scale_method_note,
+              ::testing::HasSubstr("the scale inside the adjustment failed (scale_in_adjustment: frame tag " +
+                                   std::to_string(broken.frame_tags[1])));
+  ASSERT_EQ(fallback->front_end.warnings.size(), 1u);
+  EXPECT_THAT(fallback->front_end.warnings[0], ::testing::HasSubstr("; s is the two-step s"));
+  EXPECT_THAT(fallback->ToText(), ::testing::HasSubstr("Result: s = " + FormatPrintf("%.9f", s_two) +
+                                                       " +- "));
   std::filesystem::remove_all(dir);
 }
 
@@ -115,8 +151,7 @@ TEST(ScaleInAdjustment, NoisyRendersSideBySideWithTheTwoStepPath) {
     ASSERT_TRUE(truth.ok());
     ImageMeasureOptions options;
     options.front_end.num_threads = 2;
-    options.front_end.scale_in_adjustment = true;
-    Result<ImageMeasureReport> report = MeasureScaleFromImages(scene, dir.string(), *calibration, options);
+      Result<ImageMeasureReport> report = MeasureScaleFromImages(scene, dir.string(), *calibration, options);
     std::filesystem::remove_all(dir);
     ASSERT_TRUE(report.ok()) << report.status().ToString();
     ASSERT_TRUE(report->projector.has_value());

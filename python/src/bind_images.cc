@@ -51,12 +51,14 @@ void BindImages(py::module_& m) {
       .def_readwrite("intrinsics", &opl::SceneCamera::intrinsics)
       .def_readwrite("cam_from_scene", &opl::SceneCamera::cam_from_scene, "Rigid3 or None.")
       .def_readwrite("calibration", &opl::SceneCamera::calibration, "SceneCameraCalibration or None.");
-  py::class_<opl::SceneShot>(m, "SceneShot", "One photograph: camera, file, lasers on, slice.")
+  py::class_<opl::SceneShot>(m, "SceneShot", "One photograph: camera, file, lasers on, slice, placement.")
       .def(py::init<>())
       .def_readwrite("camera", &opl::SceneShot::camera)
       .def_readwrite("file", &opl::SceneShot::file)
       .def_readwrite("lasers", &opl::SceneShot::lasers)
-      .def_readwrite("slice", &opl::SceneShot::slice);
+      .def_readwrite("slice", &opl::SceneShot::slice)
+      .def_readwrite("placement", &opl::SceneShot::placement,
+                     "The module placement it shows ('' when the scene lists none).");
   py::class_<opl::Scene>(m, "Scene",
                          "A scene JSON: cameras, tags, frame, artifact, module, the look of the "
                          "images and the shots (docs/formats.md). List attributes return copies.")
@@ -80,6 +82,14 @@ void BindImages(py::module_& m) {
                                return ids;
                              })
       .def_property_readonly("tag_size_mm", [](const opl::Scene& s) { return s.tags.size_mm; })
+      .def_property_readonly(
+          "module_placements",
+          [](const opl::Scene& s) {
+            std::vector<std::string> names;
+            for (const opl::SceneModulePlacement& p : s.module_placements) names.push_back(p.name);
+            return names;
+          },
+          "Names of the module placements (empty: one, the module as designed).")
       .def("validate", [](const opl::Scene& s) { ThrowIfError(s.Validate()); });
 
   using FO = opl::FrontEndOptions;

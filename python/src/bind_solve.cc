@@ -121,7 +121,8 @@ void BindScale(py::module_& m) {
       .def_readonly("cal_mm", &opl::LengthScale::cal_mm, "L_cal, mm.")
       .def_readonly("u_cal_mm", &opl::LengthScale::u_cal_mm)
       .def_readonly("scale", &opl::LengthScale::scale)
-      .def_readonly("u_scale", &opl::LengthScale::u_scale);
+      .def_readonly("u_scale", &opl::LengthScale::u_scale)
+      .def_readonly("placement", &opl::LengthScale::placement, "Its module placement ('' when none).");
   py::class_<opl::ScaleResult>(m, "ScaleResult", "The scale factor s (mm per scene unit) and its uncertainty.")
       .def_readonly("lengths", &opl::ScaleResult::lengths)
       .def_readonly("scale_factor", &opl::ScaleResult::scale_factor, "s, mm per scene unit.")
@@ -175,7 +176,9 @@ void BindIdentify(py::module_& m) {
       .def_readonly("scene_from_source", &opl::IdentifiedSource::scene_from_source)
       .def_readonly("assigned", &opl::IdentifiedSource::assigned)
       .def_readonly("rms_residual_rad", &opl::IdentifiedSource::rms_residual_rad)
-      .def_readonly("sigma_rad", &opl::IdentifiedSource::sigma_rad);
+      .def_readonly("sigma_rad", &opl::IdentifiedSource::sigma_rad)
+      .def_readonly("placement", &opl::IdentifiedSource::placement,
+                    "The placement it was identified at ('' with one placement).");
   py::class_<opl::IdentifyResult>(m, "IdentifyResult",
                                   "Per input spot: the index of its source in the calibration "
                                   "(-1: unassigned) and its beam id (0).")
@@ -215,6 +218,8 @@ void BindMeasure(py::module_& m) {
                                  "spots were unsorted) and the scale factor.")
       .def_readonly("sources", &opl::MeasureReport::sources, "List of (name, LocateResult).")
       .def_readonly("sources_without_spots", &opl::MeasureReport::sources_without_spots)
+      .def_readonly("source_placements", &opl::MeasureReport::source_placements,
+                    "The module placement of each located source ('' when the spots name none).")
       .def_readonly("identification", &opl::MeasureReport::identification)
       .def_readonly("scale", &opl::MeasureReport::scale)
       .def_property_readonly("s", [](const opl::MeasureReport& r) { return r.scale.scale_factor; },

@@ -10,7 +10,7 @@ using opl::Status;
 SpotTable MakeSpots(const py::array_t<double, py::array::forcecast>& points,
                     const py::object& sources, const py::object& beam_ids,
                     const py::object& covariances, const py::object& sigmas,
-                    const py::object& slices) {
+                    const py::object& slices, const py::object& placements) {
   SpotTable t;
   const std::vector<Eigen::Vector3d> p = PointsFromArray(points, "Spots: points");
   const size_t n = p.size();
@@ -34,6 +34,13 @@ SpotTable MakeSpots(const py::array_t<double, py::array::forcecast>& points,
   if (!slices.is_none()) {
     t.slices = slices.cast<std::vector<int>>();
     if (t.slices.size() != n) length_error("slices", t.slices.size());
+  }
+  std::vector<std::string> placement(n);
+  if (py::isinstance<py::str>(placements)) {
+    std::fill(placement.begin(), placement.end(), placements.cast<std::string>());
+  } else if (!placements.is_none()) {
+    placement = placements.cast<std::vector<std::string>>();
+    if (placement.size() != n) length_error("placements", placement.size());
   }
   if (!covariances.is_none() && !sigmas.is_none()) {
     ThrowIfError(Status::InvalidArgument("Spots: give covariances or sigmas, not both"));
@@ -71,6 +78,7 @@ SpotTable MakeSpots(const py::array_t<double, py::array::forcecast>& points,
     s.observation.beam_id = beam[i];
     s.observation.point_in_scene = p[i];
     s.observation.cov_in_scene = cov[i];
+    s.placement = placement[i];
     s.where = "point " + std::to_string(i);
   }
   return t;
@@ -87,9 +95,12 @@ void BindSpots(py::module_& m) {
       .def(py::init(&MakeSpots), py::arg("points"), py::arg("sources") = py::none(),
            py::arg("beam_ids") = py::none(), py::arg("covariances") = py::none(),
            py::arg("sigmas") = py::none(), py::arg("slices") = py::none(),
+           py::arg("placements") = py::none(),
            "points: (N, 3); sources: one name for all, a list of N names, or None (unassigned); "
            "beam_ids: N ints or None (0 = unassigned); covariances: (N, 3, 3) or sigmas: (N, 3) "
-           "standard deviations per coordinate (not both; None: unweighted); slices: N ints.")
+           "standard deviations per coordinate (not both; None: unweighted); slices: N ints; "
+           "placements: the module placement of each spot (one name for all, N names, or None: "
+           "none; docs/multiview.md, 'Several placements').")
       .def("__len__", [](const SpotTable& t) { return t.spots.size(); })
       .def_property_readonly(
           "points",
@@ -135,6 +146,14 @@ void BindSpots(py::module_& m) {
       .def_property_readonly(
           "slices", [](const SpotTable& t) { return t.slices; },
           "Calibration slice of each spot.")
+      .def_property_readonly(
+          "placements",
+          [](const SpotTable& t) {
+            std::vector<std::string> v;
+            for (const opl::Spot& s : t.spots) v.push_back(s.placement);
+            return v;
+          },
+          "Module placement of each spot ('' when none).")
       .def_property_readonly(
           "where",
           [](const SpotTable& t) {

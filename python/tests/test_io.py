@@ -122,6 +122,40 @@ def test_scale_point_file_ply_keeps_other_properties(tmp_path):
     assert not (tmp_path / "never.ply").exists()
 
 
+def test_spots_at_two_placements(prototype_design, examples, tmp_path, apps_dir):
+    """The module at two placements (docs/multiview.md): the placement column
+    round-trips, and each source is located at each placement, in Python as
+    in opl_measure. (The design's ideal grids are symmetric, so the spots
+    keep their source and beam: measure_test covers the identification.)"""
+    calibration = prototype_design.exact_calibration()
+    first, _, _ = opl.simulate_spots(prototype_design)
+    moved = first.points + np.array([0.0, 250.0, 80.0])  # the module (and its wall) 250 mm aside
+    n = len(first)
+    spots = opl.Spots(np.vstack([first.points, moved]), sources=first.sources * 2,
+                      beam_ids=np.concatenate([first.beam_ids, first.beam_ids]),
+                      sigmas=np.full((2 * n, 3), 0.05), placements=["here"] * n + ["there"] * n)
+    assert spots.placements[0] == "here" and spots.placements[-1] == "there"
+    path = tmp_path / "spots.csv"
+    opl.write_spots_csv(spots, str(path))
+    assert path.read_text().splitlines()[0] == "source,beam,x,y,z,sx,sy,sz,placement"
+    back = opl.read_spots_csv(str(path))
+    assert back.placements == spots.placements
+    report = opl.measure_scale(calibration, back)
+    assert report.source_placements == ["here"] * 2 + ["there"] * 2
+    assert [l.placement for l in report.scale.lengths] == ["here", "there"]
+    assert report.s == pytest.approx(1.0, abs=5 * report.u_s)
+    cal_path = tmp_path / "cal.json"
+    opl.write_module_calibration(calibration, str(cal_path))
+    out = subprocess.run([str(apps_dir / "opl_measure"), "--calibration", str(cal_path),
+                          "--spots", str(path), "--json"], check=True, capture_output=True, text=True).stdout
+    cli = json.loads(out)
+    assert cli["scale_factor"] == pytest.approx(report.s, rel=1e-12)
+    assert [l["placement"] for l in cli["lengths"]] == ["here", "there"]
+    scene = opl.Scene.read(str(examples / "scene_small_placements.json"))
+    assert scene.module_placements == ["centre", "aside"]
+    assert scene.shots[0].placement == "centre" and scene.shots[-1].placement in ("aside", "")
+
+
 def test_cameras_and_scene(examples, tmp_path):
     scene = opl.Scene.read(str(examples / "scene_small.json"))
     assert len(scene.cameras) >= 1 and len(scene.shots) >= 1

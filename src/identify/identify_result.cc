@@ -91,7 +91,8 @@ int IdentifyResult::num_unassigned() const {
 std::string IdentifyResult::ToText() const {
   std::ostringstream os;
   for (const IdentifiedSource& s : sources) {
-    os << "source " << s.name << ": " << IdentifyOutcomeName(s.outcome);
+    os << "source " << s.name << (s.placement.empty() ? "" : " at placement " + s.placement) << ": "
+       << IdentifyOutcomeName(s.outcome);
     if (s.outcome == IdentifyOutcome::kFound) {
       os << ", " << s.assigned << " points, rms " << FormatNumber(s.rms_residual_rad * 1e6, 4) << " urad";
     }

@@ -15,6 +15,7 @@ Status AppendSpot(const std::vector<std::string>& fields, int line, const std::s
   Spot spot;
   spot.where = where;
   if (columns.source >= 0) spot.source = fields[columns.source];
+  if (columns.placement >= 0) spot.placement = fields[columns.placement];
   if (columns.beam >= 0 && !fields[columns.beam].empty()) {
     const std::string& text = fields[columns.beam];
     const std::string context = FieldContext(name, line, "beam");

@@ -21,6 +21,7 @@ struct SpotFieldColumns {
   int sigma[3] = {-1, -1, -1};
   int slice = -1;
   int id = -1;
+  int placement = -1;
 
   bool has_sigmas() const { return sigma[0] >= 0; }
 };
@@ -32,6 +33,7 @@ struct SpotFieldColumns {
 //   beam: empty (or no column) = unassigned, beam_id 0; else an integer >= 1.
 //   x, y, z: finite numbers. sx, sy, sz: finite and > 0, giving
 //   cov_in_scene = diag(sx^2, sy^2, sz^2). slice: an integer >= 0. id: any text.
+//   placement: any text (Spot::placement; empty = none).
 // data is unchanged on error.
 Status AppendSpot(const std::vector<std::string>& fields, int line, const std::string& name,
                   const SpotFieldColumns& columns, SpotsCsvData* data);

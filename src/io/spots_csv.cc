@@ -1,5 +1,6 @@
 #include "opl/io/spots_csv.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "io/csv.h"
@@ -52,12 +53,14 @@ Result<SpotsCsvData> ParseSpotsCsv(const std::string& text, const std::string& n
                               missing + ")");
   }
   columns.slice = table.FindColumn("slice");
+  columns.placement = table.FindColumn("placement");
 
   SpotsCsvData data;
   data.has_sigmas = columns.has_sigmas();
   for (size_t i = 0; i < table.header.fields.size(); ++i) {
     const int index = static_cast<int>(i);
-    bool used = index == columns.slice || index == columns.source || index == columns.beam;
+    bool used = index == columns.slice || index == columns.source || index == columns.beam ||
+                index == columns.placement;
     for (int k = 0; k < 3; ++k) used |= index == columns.xyz[k] || index == columns.sigma[k];
     if (!used) data.other_columns.push_back(table.header.fields[i]);
   }
@@ -85,8 +88,11 @@ Result<std::string> FormatSpotsCsv(const std::vector<Spot>& spots,
                                      std::to_string(spots.size()) + " spots");
     }
   }
+  const bool placements = std::any_of(spots.begin(), spots.end(),
+                                      [](const Spot& s) { return !s.placement.empty(); });
   std::string out = "source,beam,x,y,z";
   if (sigmas) out += ",sx,sy,sz";
+  if (placements) out += ",placement";
   for (const SpotsCsvExtraColumn& c : extra) out += "," + csv_internal::QuoteCsvField(c.name);
   out += "\n";
   for (size_t i = 0; i < spots.size(); ++i) {
@@ -118,6 +124,7 @@ Result<std::string> FormatSpotsCsv(const std::vector<Spot>& spots,
         out += "," + FormatRoundTrip(sigma);
       }
     }
+    if (placements) out += "," + csv_internal::QuoteCsvField(s.placement);
     for (const SpotsCsvExtraColumn& c : extra) {
       out += "," + csv_internal::QuoteCsvField(c.values[i]);
     }

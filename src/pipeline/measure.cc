@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <map>
+#include <set>
 #include <tuple>
 
 #include <nlohmann/json.hpp>
@@ -40,7 +41,8 @@ nlohmann::ordered_json MatrixJson(const Eigen::Matrix3d& m) {
 std::string IdentificationBrief(const IdentifyResult& identification) {
   std::string out;
   for (const IdentifiedSource& s : identification.sources) {
-    out += (out.empty() ? "" : "; ") + s.name + " " + IdentifyOutcomeName(s.outcome) +
+    out += (out.empty() ? "" : "; ") + s.name + (s.placement.empty() ? "" : " at " + s.placement) + " " +
+           IdentifyOutcomeName(s.outcome) +
            (s.outcome == IdentifyOutcome::kFound
                 ? " (" + std::to_string(s.assigned) + " points)"
                 : (s.detail.empty() ? std::string() : ": " + s.detail));
@@ -58,6 +60,55 @@ Status MeasureOptions::Validate() const {
   return Status::Ok();
 }
 
+namespace {
+
+// IdentifySpots, one module placement at a time (Spot::placement: the
+// spots of two placements are two sets of grids of the same sources): the
+// results combined, each placement's sources after the previous one's,
+// named with their placement.
+Result<IdentifyResult> IdentifyByPlacement(const ModuleCalibration& calibration,
+                                           const std::vector<Spot>& spots,
+                                           const IdentifyOptions& options) {
+  std::vector<std::string> placements;
+  for (const Spot& spot : spots) {
+    if (std::find(placements.begin(), placements.end(), spot.placement) == placements.end()) {
+      placements.push_back(spot.placement);
+    }
+  }
+  if (placements.size() <= 1) return IdentifySpots(calibration, spots, options);
+  IdentifyResult combined;
+  combined.source_index.assign(spots.size(), -1);
+  combined.beam_id.assign(spots.size(), 0);
+  for (const std::string& placement : placements) {
+    std::vector<size_t> index;
+    std::vector<Spot> subset;
+    for (size_t i = 0; i < spots.size(); ++i) {
+      if (spots[i].placement != placement) continue;
+      index.push_back(i);
+      subset.push_back(spots[i]);
+    }
+    Result<IdentifyResult> r = IdentifySpots(calibration, subset, options);
+    if (!r.ok()) {
+      return Status(r.status().code(),
+                    "placement " + QuoteForMessage(placement) + ": " + r.status().message());
+    }
+    const int offset = static_cast<int>(combined.sources.size());
+    for (IdentifiedSource source : r->sources) {
+      source.placement = placement;
+      combined.sources.push_back(std::move(source));
+    }
+    for (size_t j = 0; j < index.size(); ++j) {
+      const int s = r->source_index[j];
+      combined.source_index[index[j]] = s >= 0 ? offset + s : -1;
+      combined.beam_id[index[j]] = r->beam_id[j];
+    }
+    combined.passed_through += r->passed_through;
+  }
+  return combined;
+}
+
+}  // namespace
+
 Result<MeasureReport> MeasureScale(const ModuleCalibration& calibration,
                                    const std::vector<Spot>& input_spots,
                                    const MeasureOptions& options) {
@@ -71,7 +122,7 @@ Result<MeasureReport> MeasureScale(const ModuleCalibration& calibration,
   const bool identify = std::any_of(input_spots.begin(), input_spots.end(),
                                     [](const Spot& spot) { return !spot.assigned(); });
   if (identify) {
-    Result<IdentifyResult> result = IdentifySpots(calibration, input_spots, options.identify);
+    Result<IdentifyResult> result = IdentifyByPlacement(calibration, input_spots, options.identify);
     if (!result.ok()) return result.status();
     identified = AssignedSpots(input_spots, *result);
     identification = std::move(*result);
@@ -180,7 +231,8 @@ std::string MeasureReport::ToText() const {
            std::to_string(identification->source_index.size()) + " points assigned, " +
            std::to_string(identification->num_unassigned()) + " unassigned\n";
     for (const IdentifiedSource& s : identification->sources) {
-      out += "  " + s.name + ": " + IdentifyOutcomeName(s.outcome);
+      out += "  " + s.name + (s.placement.empty() ? "" : " at placement " + s.placement) + ": " +
+             IdentifyOutcomeName(s.outcome);
       if (s.outcome == IdentifyOutcome::kFound) {
         out += ", " + std::to_string(s.assigned) + " points, rms " +
                FormatPrintf("%.1f", s.rms_residual_rad * 1e6) + " urad";
@@ -278,11 +330,13 @@ std::string MeasureReport::ToJson() const {
     id["unassigned"] = identification->num_unassigned();
     ordered_json id_sources = ordered_json::array();
     for (const IdentifiedSource& s : identification->sources) {
-      id_sources.push_back({{"name", s.name},
+      ordered_json entry = {{"name", s.name},
                             {"outcome", IdentifyOutcomeName(s.outcome)},
                             {"detail", s.detail},
                             {"assigned", s.assigned},
-                            {"rms_residual_urad", s.rms_residual_rad * 1e6}});
+                            {"rms_residual_urad", s.rms_residual_rad * 1e6}};
+      if (!s.placement.empty()) entry["placement"] = s.placement;
+      id_sources.push_back(std::move(entry));
     }
     id["sources"] = std::move(id_sources);
     doc["identification"] = std::move(id);

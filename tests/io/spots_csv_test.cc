@@ -311,6 +311,33 @@ TEST(SpotsCsv, FormatThenParseIsBitExact) {
   }
 }
 
+// The module placement (issue 20): written when a spot has one, read back
+// (quoted names too); a column of the reader, not one of other_columns.
+TEST(SpotsCsv, PlacementColumnRoundTrips) {
+  std::vector<Spot> spots(3);
+  for (size_t i = 0; i < spots.size(); ++i) {
+    spots[i].source = "A";
+    spots[i].observation.beam_id = static_cast<int>(i) + 1;
+    spots[i].observation.point_in_scene = Eigen::Vector3d(1.0 * i, 2, 3);
+  }
+  spots[0].placement = "centre";
+  spots[1].placement = "aside, high";
+  Result<std::string> text = FormatSpotsCsv(spots, {{"note", {"a", "b", "c"}}});
+  ASSERT_TRUE(text.ok()) << text.status().ToString();
+  EXPECT_EQ(*text,
+            "source,beam,x,y,z,placement,note\nA,1,0,2,3,centre,a\nA,2,1,2,3,\"aside, high\",b\nA,3,2,2,3,\"\",c\n");
+  Result<SpotsCsvData> back = ParseSpotsCsv(*text, "t.csv");
+  ASSERT_TRUE(back.ok()) << back.status().ToString();
+  ASSERT_EQ(back->spots.size(), 3u);
+  EXPECT_EQ(back->spots[0].placement, "centre");
+  EXPECT_EQ(back->spots[1].placement, "aside, high");
+  EXPECT_EQ(back->spots[2].placement, "");
+  EXPECT_EQ(back->other_columns, std::vector<std::string>{"note"});
+  // No placement anywhere: no column.
+  for (Spot& s : spots) s.placement.clear();
+  EXPECT_EQ(FormatSpotsCsv(spots)->substr(0, 18), "source,beam,x,y,z\n");
+}
+
 TEST(SpotsCsv, FormatWithoutCovariancesHasNoSigmaColumns) {
   std::vector<Spot> spots(1);
   spots[0].source = "A";

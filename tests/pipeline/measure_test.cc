@@ -39,6 +39,72 @@ TEST(MeasureScale, NoiseFreeSpotsGiveTheTrueScaleAndPoses) {
   EXPECT_TRUE(report->sources_without_spots.empty());
 }
 
+// Spots at two module placements (Spot::placement, as a spots CSV's
+// `placement` column gives them): each source located at each placement,
+// one length per placement, s their combination; unassigned spots are
+// identified one placement at a time.
+TEST(MeasureScale, SpotsAtTwoPlacements) {
+  // The ideal grid is symmetric under a half turn (not identifiable): each
+  // beam moved by up to 2 mrad, differently in each source, as a real
+  // calibration's are.
+  ModuleCalibration cal = SyntheticCalibration(2);
+  double phase = 0.0;
+  for (SourceCalibration& source : cal.sources) {
+    std::vector<Beam> beams = source.pattern.beams();
+    phase += 1.0;
+    for (Beam& b : beams) {
+      b.az_rad += 2e-3 * std::sin(7.0 * b.id + phase);
+      b.el_rad += 2e-3 * std::cos(5.0 * b.id + 2.0 * phase);
+    }
+    source.pattern = BeamPattern(source.pattern.beams_per_side(), beams);
+  }
+  SceneTransform first, second;
+  first.true_scale = second.true_scale = 2.5;
+  second.translation_mm = Eigen::Vector3d(300.0, -120.0, 40.0);
+  std::vector<Spot> spots;
+  for (Spot s : SyntheticSpots(cal, first)) {
+    s.placement = "left";
+    spots.push_back(s);
+  }
+  for (Spot s : SyntheticSpots(cal, second)) {
+    s.placement = "right";
+    spots.push_back(s);
+  }
+  Result<MeasureReport> report = MeasureScale(cal, spots);
+  ASSERT_TRUE(report.ok()) << report.status().ToString();
+  ASSERT_EQ(report->sources.size(), 4u);
+  EXPECT_EQ(report->source_placements, (std::vector<std::string>{"left", "left", "right", "right"}));
+  ASSERT_EQ(report->scale.lengths.size(), 2u);
+  EXPECT_EQ(report->scale.lengths[1].placement, "right");
+  EXPECT_NEAR(report->scale.scale_factor, 2.5, 1e-9);
+  // The right placement's origins are the left's moved by the difference of
+  // the translations (in unscaled units).
+  EXPECT_LT((report->sources[2].second.scene_from_source.translation -
+             report->sources[0].second.scene_from_source.translation -
+             (second.translation_mm - first.translation_mm) / 2.5)
+                .norm(),
+            1e-8);
+  // Unassigned: identified one placement at a time, the same result.
+  for (Spot& s : spots) {
+    s.source.clear();
+    s.observation.beam_id = 0;
+  }
+  Result<MeasureReport> identified = MeasureScale(cal, spots);
+  ASSERT_TRUE(identified.ok()) << identified.status().ToString();
+  ASSERT_TRUE(identified->identification.has_value());
+  const IdentifyResult& id = *identified->identification;
+  ASSERT_EQ(id.sources.size(), 4u);
+  EXPECT_EQ(id.sources[1].name, "B");
+  EXPECT_EQ(id.sources[1].placement, "left");
+  EXPECT_EQ(id.sources[2].name, "A");
+  EXPECT_EQ(id.sources[2].placement, "right");
+  EXPECT_EQ(id.num_assigned(), static_cast<int>(spots.size()));
+  EXPECT_EQ(identified->source_placements, report->source_placements);
+  EXPECT_NEAR(identified->scale.scale_factor, 2.5, 1e-9);
+  EXPECT_THAT(identified->ToText(), HasSubstr("B at placement right: found, 121 points"));
+  EXPECT_EQ(nlohmann::json::parse(identified->ToJson())["identification"]["sources"][3]["placement"], "right");
+}
+
 TEST(MeasureScale, ThreeSourcesReportConsistency) {
   const ModuleCalibration cal = SyntheticCalibration(3);
   Result<MeasureReport> report = MeasureScale(cal, SyntheticSpots(cal));

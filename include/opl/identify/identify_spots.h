@@ -188,6 +188,10 @@ struct IdentifiedSource {
   int assigned = 0;            // points assigned to it by IdentifySpots
   double rms_residual_rad = 0;  // RMS angle residual of its assigned points, per component
   double sigma_rad = 0;        // robust per-component angular noise used for the gate
+  // The module placement of the spots it was identified among (Spot::
+  // placement), when MeasureScale identified several placements' spots,
+  // one placement at a time; empty otherwise.
+  std::string placement{};
 };
 
 struct IdentifyResult {
@@ -196,7 +200,9 @@ struct IdentifyResult {
   // (source and beam given) appear with their own source and beam.
   std::vector<int> source_index;
   std::vector<int> beam_id;
-  std::vector<IdentifiedSource> sources;  // one per calibrated source, calibration order
+  // One per calibrated source, calibration order (MeasureScale with spots
+  // at several placements: that per placement, in order of first appearance).
+  std::vector<IdentifiedSource> sources;
   int passed_through = 0;                 // spots given with source and beam
 
   int num_assigned() const;    // entries with source_index >= 0 (passed through included)

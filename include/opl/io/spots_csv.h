@@ -12,7 +12,9 @@
 // units; all three or none; > 0 and finite), giving
 // SpotObservation::cov_in_scene = diag(sx^2, sy^2, sz^2); and `slice` (an
 // integer >= 0, the calibration slice a spot was measured in), returned
-// alongside the spots. Fields follow RFC 4180 (quotes for names holding commas
+// alongside the spots; `placement` (the module placement the spot was shot
+// at, Spot::placement: spots of different placements are different grids;
+// empty = none). Fields follow RFC 4180 (quotes for names holding commas
 // or quotes); blank lines are skipped. Each Spot's `where` is "<file>:<line>".
 //
 // Unassigned spots: an empty `source` field (or no `source` column) gives
@@ -71,7 +73,8 @@ struct SpotsCsvExtraColumn {
 
 // Formats spots as a Spots CSV: `source,beam,x,y,z`, then `sx,sy,sz` when
 // every spot has a covariance (the square roots of its diagonal: off-diagonal
-// terms are not representable and are dropped), then `extra` columns. Numbers
+// terms are not representable and are dropped), then `placement` when a spot
+// has one, then `extra` columns. Numbers
 // are written with the shortest text that reads back exactly; an unassigned
 // beam (id 0) is an empty field, an empty source `""`, so unassigned spots read
 // back unassigned. InvalidArgument when an extra column's size differs from the

@@ -31,7 +31,8 @@ std::string ImageMeasureReport::ToText() const {
   for (size_t g = 0; g < identification.size(); ++g) {
     out << "identification, exposure group " << g << ":\n" << identification[g].ToText();
   }
-  out << "\n" << measure.ToText();
+  out << "\nthe two-step measurement (each source located from its triangulated spots):\n"
+      << measure.ToText();
   if (shared_components > 0) {
     out << "u(s) = sqrt(own^2 + shared^2): own " << FormatNumber(u_scale_factor_own, 3)
         << " (the spots' own errors), shared " << FormatNumber(u_scale_factor_shared, 3)

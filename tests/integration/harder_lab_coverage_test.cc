@@ -200,11 +200,13 @@ TEST(HarderLabCoverage, ScaleWithinItsUncertaintyAndNoWrongSpot) {
   EXPECT_GE(within, static_cast<int>(std::floor(0.75 * measured)));
   EXPECT_GE(rms_z, 0.5);
   EXPECT_LE(rms_z, 1.8);
-  // The projector adjustment ran on every scene; its u(s) is not yet
-  // honest on this lab (docs/multiview.md, "The variance factor"): only a
-  // gross failure is caught here.
+  // The scale inside the adjustment (the reported s) ran on every scene,
+  // and is judged by the same bounds: over seeds 131-230 its |z| <= 2 in
+  // 95 of 100, RMS z 0.98 (two-step: 94, 1.04; docs/multiview.md).
   EXPECT_EQ(projector, measured);
-  EXPECT_LE(rms_zp, 3.0);
+  EXPECT_GE(projector_within, static_cast<int>(std::floor(0.75 * projector)));
+  EXPECT_GE(rms_zp, 0.5);
+  EXPECT_LE(rms_zp, 1.8);
 }
 
 // The module at two placements (issue 20 item 2) in the harder lab: the

@@ -1,11 +1,13 @@
 #include "opl/vision/camera_calibration.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <numeric>
 #include <sstream>
 #include <string>
 
+#include <Eigen/Dense>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core/version.hpp>
 #include <opencv2/imgproc.hpp>
@@ -31,6 +33,123 @@ Status CheckGrayImage(const cv::Mat& image, const std::string& name) {
   return Status::Ok();
 }
 
+
+// The sandwich standard deviations of the intrinsics (see the header) when
+// every view has pixel covariance blocks covering its corners, each positive
+// definite; false otherwise (the caller keeps the residual-based figures).
+bool SandwichIntrinsicsStd(const std::vector<BoardView>& views, const cv::Mat& camera_matrix,
+                           const cv::Mat& dist_coeffs, const std::vector<cv::Mat>& rvecs,
+                           const std::vector<cv::Mat>& tvecs, const CameraCalibrationOptions& options,
+                           std::array<double, kNumCameraParameters>* std_out) {
+  for (const BoardView& view : views) {
+    size_t rows = 0;
+    for (const Eigen::MatrixXd& block : view.pixel_covariance_blocks_px2) {
+      if (block.rows() < 2 || block.rows() % 2 != 0 || block.cols() != block.rows()) return false;
+      rows += static_cast<size_t>(block.rows());
+    }
+    if (rows != 2 * view.pixels.size()) return false;
+  }
+  // Free intrinsics as columns of the Jacobian: each a combination of
+  // projectPoints' columns fx, fy, cx, cy, k1, k2, p1, p2, k3 (6 .. 14).
+  const double aspect = camera_matrix.at<double>(0, 0) / camera_matrix.at<double>(1, 1);
+  std::vector<std::array<double, kNumCameraParameters>> free;  // weights on the 9 columns
+  std::vector<int> free_index;                                   // its parameter (kNumCameraParameters order)
+  auto add = [&](int k, int other = -1, double other_weight = 0.0) {
+    std::array<double, kNumCameraParameters> w{};
+    w[static_cast<size_t>(k)] = 1.0;
+    if (other >= 0) w[static_cast<size_t>(other)] = other_weight;
+    free.push_back(w);
+    free_index.push_back(k);
+  };
+  if (options.fix_aspect_ratio) {
+    add(1, 0, aspect);  // fy, and fx = aspect fy with it
+  } else {
+    add(0);
+    add(1);
+  }
+  add(2);
+  add(3);
+  add(4);
+  add(5);
+  if (!options.fix_tangential) {
+    add(6);
+    add(7);
+  }
+  if (!options.fix_k3) add(8);
+  const int ni = static_cast<int>(free.size());
+  const int num_params = ni + 6 * static_cast<int>(views.size());
+  Eigen::MatrixXd JtJ = Eigen::MatrixXd::Zero(num_params, num_params);
+  Eigen::MatrixXd JtSJ = Eigen::MatrixXd::Zero(num_params, num_params);
+  double chi2 = 0.0;
+  int num_residuals = 0;
+  for (size_t v = 0; v < views.size(); ++v) {
+    const BoardView& view = views[v];
+    std::vector<cv::Point3d> obj;
+    for (const Eigen::Vector3d& P : view.points_in_board) obj.emplace_back(P.x(), P.y(), P.z());
+    std::vector<cv::Point2d> projected;
+    cv::Mat jacobian;
+    cv::projectPoints(obj, rvecs[v], tvecs[v], camera_matrix, dist_coeffs, projected, jacobian);
+    const int n = static_cast<int>(obj.size());
+    // The view's Jacobian over (free intrinsics, its 6 pose parameters).
+    Eigen::MatrixXd J(2 * n, ni + 6);
+    Eigen::VectorXd r(2 * n);
+    for (int i = 0; i < 2 * n; ++i) {
+      const double* row = jacobian.ptr<double>(i);
+      for (int f = 0; f < ni; ++f) {
+        double sum = 0.0;
+        const std::array<double, kNumCameraParameters>& weights = free[static_cast<size_t>(f)];
+        for (int k = 0; k < kNumCameraParameters; ++k) sum += weights[static_cast<size_t>(k)] * row[6 + k];
+        J(i, f) = sum;
+      }
+      for (int k = 0; k < 6; ++k) J(i, ni + k) = row[k];  // rvec, tvec
+      const size_t corner = static_cast<size_t>(i / 2);
+      const Eigen::Vector2d& p = view.pixels[corner];
+      r(i) = i % 2 == 0 ? projected[corner].x - p.x() : projected[corner].y - p.y();
+    }
+    const Eigen::MatrixXd JtJv = J.transpose() * J;
+    Eigen::MatrixXd JtSJv = Eigen::MatrixXd::Zero(ni + 6, ni + 6);
+    int at = 0;
+    for (const Eigen::MatrixXd& block : view.pixel_covariance_blocks_px2) {
+      const int m = static_cast<int>(block.rows());
+      const Eigen::LLT<Eigen::MatrixXd> llt(0.5 * (block + block.transpose()));
+      if (llt.info() != Eigen::Success || !block.allFinite()) return false;
+      const Eigen::MatrixXd Jb = J.middleRows(at, m);
+      JtSJv += Jb.transpose() * block * Jb;
+      chi2 += r.segment(at, m).dot(llt.solve(r.segment(at, m)));
+      at += m;
+    }
+    num_residuals += 2 * n;
+    // Scatter into the whole problem: intrinsics first, then 6 per view.
+    const int pose = ni + 6 * static_cast<int>(v);
+    auto scatter = [&](const Eigen::MatrixXd& from, Eigen::MatrixXd* to) {
+      to->topLeftCorner(ni, ni) += from.topLeftCorner(ni, ni);
+      to->block(0, pose, ni, 6) += from.topRightCorner(ni, 6);
+      to->block(pose, 0, 6, ni) += from.bottomLeftCorner(6, ni);
+      to->block(pose, pose, 6, 6) += from.bottomRightCorner(6, 6);
+    };
+    scatter(JtJv, &JtJ);
+    scatter(JtSJv, &JtSJ);
+  }
+  if (num_residuals <= num_params) return false;
+  // (J^T J)^-1 through its equilibrated form (the columns differ in scale
+  // by orders of magnitude: fx against k2).
+  const Eigen::VectorXd diagonal = JtJ.diagonal();
+  if (!((diagonal.array() > 0.0).all() && diagonal.allFinite())) return false;
+  const Eigen::VectorXd d = diagonal.cwiseSqrt().cwiseInverse();
+  const Eigen::FullPivLU<Eigen::MatrixXd> lu(d.asDiagonal() * JtJ * d.asDiagonal());
+  if (!lu.isInvertible()) return false;
+  const Eigen::MatrixXd inverse = d.asDiagonal() * lu.inverse() * d.asDiagonal();
+  const double lambda = chi2 / (num_residuals - num_params);
+  const Eigen::MatrixXd cov = lambda * inverse * JtSJ * inverse;
+  std_out->fill(0.0);
+  for (int f = 0; f < ni; ++f) {
+    const double var = cov(f, f);
+    if (!(var > 0.0 && std::isfinite(var))) return false;
+    (*std_out)[static_cast<size_t>(free_index[static_cast<size_t>(f)])] = std::sqrt(var);
+  }
+  if (options.fix_aspect_ratio) (*std_out)[0] = aspect * (*std_out)[1];
+  return true;
+}
 }  // namespace
 
 Status TagBoard::Validate() const {
@@ -237,6 +356,14 @@ Result<CameraCalibration> CalibrateCamera(const std::vector<BoardView>& views, i
   // With CALIB_FIX_ASPECT_RATIO OpenCV holds fx (fx = fy * aspect, updated
   // from fy) and reports its std dev as 0: fx's follows from fy's.
   if (options.fix_aspect_ratio) result.intrinsics_std[0] = result.intrinsics_std[1] * K.fx_px / K.fy_px;
+  // Views with pixel covariances (tag boards): the sandwich instead.
+  {
+    std::array<double, kNumCameraParameters> sandwich{};
+    if (SandwichIntrinsicsStd(views, camera_matrix, dist_coeffs, rvecs, tvecs, options, &sandwich)) {
+      result.intrinsics_std = sandwich;
+      result.std_from_pixel_covariances = true;
+    }
+  }
   result.rms_px = rms;
   result.num_views = static_cast<int>(views.size());
   result.num_corners = num_corners;
@@ -276,7 +403,21 @@ Result<BoardView> DetectTagBoardView(const cv::Mat& image, const TagBoard& board
       view.points_in_board.push_back((*corners)[c]);
       view.pixels.push_back(det.corners_px[c]);
     }
+    // The tag's corners' covariance: each corner's, and the shared edges'
+    // cross terms (an unrefined corner's: fallback_corner_sigma_px, no cross
+    // terms). The OpenCV refinements give none: no blocks for the view.
+    if (options.detection.refinement == TagCornerRefinement::kEdgeFit) {
+      Eigen::MatrixXd block = Eigen::MatrixXd::Zero(8, 8);
+      for (int c = 0; c < 4; ++c) {
+        const int d = (c + 1) % 4;
+        block.block<2, 2>(2 * c, 2 * c) = det.corner_covariance_px2[c];
+        block.block<2, 2>(2 * c, 2 * d) = det.corner_cross_covariance_px2[c];
+        block.block<2, 2>(2 * d, 2 * c) = det.corner_cross_covariance_px2[c].transpose();
+      }
+      view.pixel_covariance_blocks_px2.push_back(block);
+    }
   }
+  if (view.pixel_covariance_blocks_px2.size() * 4 != view.pixels.size()) view.pixel_covariance_blocks_px2.clear();
   if (static_cast<int>(view.pixels.size()) < options.min_corners_per_view) {
     return Status::NoSolution("no board found: " + std::to_string(view.pixels.size() / 4) +
                               " tags of the board detected (" + std::to_string(view.pixels.size()) +

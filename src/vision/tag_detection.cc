@@ -95,6 +95,7 @@ bool RefineCandidate(const cv::Mat& gray, const TagCandidate& candidate, const T
   det->decision_margin = candidate.decision_margin;
   det->corners_px = candidate.corners_px;
   for (Eigen::Matrix2d& c : det->corner_covariance_px2) c.setZero();
+  for (Eigen::Matrix2d& c : det->corner_cross_covariance_px2) c.setZero();
   const double side = Side(det->corners_px);
   Eigen::Vector2d centre = Centre(det->corners_px);
 
@@ -142,13 +143,15 @@ bool RefineCandidate(const cv::Mat& gray, const TagCandidate& candidate, const T
   }
   std::array<Eigen::Vector2d, 4> refined;
   std::array<Eigen::Matrix2d, 4> covariance;
+  // d corner c / d (theta, c, kappa) of its first edge (c - 1) and second (c).
+  std::array<Eigen::Matrix<double, 2, 3>, 4> d_first, d_second;
   // A corner may move from the candidate's by at most 3 px and half a cell
   // (further: the fit locked on another edge, e.g. the quiet zone's).
   const double max_move = std::min(3.0, std::max(1.0, 0.5 * cell));
   for (int c = 0; c < 4 && ok; ++c) {
     // Corner c joins edge c-1 (from corner c-1 to c) and edge c.
     ok = tag_internal::IntersectEdges(edges[(c + 3) % 4], edges[c], local[c], max_move, &refined[c],
-                                      &covariance[c]);
+                                      &covariance[c], &d_first[c], &d_second[c]);
   }
   if (ok) {
     double contrast = 0.0;
@@ -157,6 +160,11 @@ bool RefineCandidate(const cv::Mat& gray, const TagCandidate& candidate, const T
       det->hamming = hamming;
       det->edge_fitted = true;
       det->corner_covariance_px2 = covariance;
+      // Corners c and c + 1 share edge c (the edges' fits are independent:
+      // disjoint pixels).
+      for (int c = 0; c < 4; ++c) {
+        det->corner_cross_covariance_px2[c] = d_second[c] * edges[c].cov * d_first[(c + 1) % 4].transpose();
+      }
       for (int c = 0; c < 4; ++c) det->corners_px[c] = refined[c] + origin;
       double rms2 = 0.0;
       det->edge_contrast = det->edge_sigma_px = 0.0;

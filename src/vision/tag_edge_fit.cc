@@ -256,7 +256,8 @@ bool FitEdge(const cv::Mat& image, const Eigen::Vector2d& p, const Eigen::Vector
 }
 
 bool IntersectEdges(const EdgeCurve& e1, const EdgeCurve& e2, const Eigen::Vector2d& start,
-                    double max_move_px, Eigen::Vector2d* corner, Eigen::Matrix2d* cov) {
+                    double max_move_px, Eigen::Vector2d* corner, Eigen::Matrix2d* cov,
+                    Eigen::Matrix<double, 2, 3>* d_corner_d_e1, Eigen::Matrix<double, 2, 3>* d_corner_d_e2) {
   Eigen::Vector2d p = start;
   Eigen::Matrix2d J;
   for (int iter = 0; iter < 20; ++iter) {
@@ -276,6 +277,8 @@ bool IntersectEdges(const EdgeCurve& e1, const EdgeCurve& e2, const Eigen::Vecto
   const Eigen::Matrix<double, 2, 3> A2 = -Jinv.col(1) * e2.ParamJacobian(p);
   *corner = p;
   *cov = A1 * e1.cov * A1.transpose() + A2 * e2.cov * A2.transpose();
+  if (d_corner_d_e1 != nullptr) *d_corner_d_e1 = A1;
+  if (d_corner_d_e2 != nullptr) *d_corner_d_e2 = A2;
   return true;
 }
 

@@ -66,9 +66,13 @@ bool FitEdge(const cv::Mat& image, const Eigen::Vector2d& p, const Eigen::Vector
              const Eigen::Vector2d& centre, const EdgeFitSettings& settings, EdgeCurve* edge);
 
 // Intersection of two edge curves near `start` (within max_move_px), and its
-// covariance [px^2].
+// covariance [px^2]. Optionally the derivatives of the corner with respect
+// to each edge's (theta, c, kappa) (for the covariance of two corners that
+// share an edge).
 bool IntersectEdges(const EdgeCurve& e1, const EdgeCurve& e2, const Eigen::Vector2d& start,
-                    double max_move_px, Eigen::Vector2d* corner, Eigen::Matrix2d* cov);
+                    double max_move_px, Eigen::Vector2d* corner, Eigen::Matrix2d* cov,
+                    Eigen::Matrix<double, 2, 3>* d_corner_d_e1 = nullptr,
+                    Eigen::Matrix<double, 2, 3>* d_corner_d_e2 = nullptr);
 
 // The 6 x 6 data cells of a tag read through its corners (order of
 // vision/tag_detection.h) in a CV_64FC1 image: 1 = white. Each cell's value

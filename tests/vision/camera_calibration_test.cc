@@ -199,6 +199,73 @@ TEST(CameraCalibration, ReportedStdDevsMatchMonteCarlo) {
   }
 }
 
+TEST(CameraCalibration, PixelCovarianceBlocksGiveTheSandwich) {
+  // As above, but each tag's 4 corners err together: a shift common to the
+  // tag (variance rho sigma^2 per axis) plus independent noise ((1 - rho)
+  // sigma^2), as the views' 8 x 8 blocks say. The residual-based figure
+  // (blocks left out) misses the common part; the sandwich follows it.
+  const Camera camera = TruthCamera();
+  const TagBoard board = TestBoard();
+  std::vector<Rigid3d> poses = BoardPoses(board);
+  poses.resize(4);
+  const double sigma_px = 0.05, rho = 0.6;
+  Eigen::MatrixXd block = (1.0 - rho) * sigma_px * sigma_px * Eigen::MatrixXd::Identity(8, 8);
+  for (int a = 0; a < 4; ++a) {
+    for (int b = 0; b < 4; ++b) {
+      block.block<2, 2>(2 * a, 2 * b) += rho * sigma_px * sigma_px * Eigen::Matrix2d::Identity();
+    }
+  }
+  std::mt19937_64 rng(7);
+  NormalGenerator normal;
+  const int trials = 60;
+  std::array<double, 4> sum{}, sum2{}, reported{}, residual_based{};
+  for (int t = 0; t < trials; ++t) {
+    std::vector<BoardView> views;
+    for (const Rigid3d& pose : poses) {
+      BoardView view;
+      for (int id = board.first_id; id < board.first_id + board.NumTags(); id += 3) {  // 8 tags
+        const Result<std::array<Eigen::Vector3d, 4>> corners = board.TagCorners(id);
+        ASSERT_TRUE(corners.ok());
+        const Eigen::Vector2d common = std::sqrt(rho) * sigma_px * Eigen::Vector2d(normal(rng), normal(rng));
+        for (const Eigen::Vector3d& p : *corners) {
+          Eigen::Vector2d px;
+          ASSERT_TRUE(ProjectToPixel(camera.intrinsics, pose * p, &px));
+          view.points_in_board.push_back(p);
+          view.pixels.push_back(px + common +
+                                std::sqrt(1.0 - rho) * sigma_px * Eigen::Vector2d(normal(rng), normal(rng)));
+        }
+        view.pixel_covariance_blocks_px2.push_back(block);
+      }
+      views.push_back(view);
+    }
+    Result<CameraCalibration> cal = CalibrateCamera(views, 1024, 768, CameraCalibrationOptions{});
+    ASSERT_TRUE(cal.ok()) << cal.status().ToString();
+    ASSERT_TRUE(cal->std_from_pixel_covariances);
+    for (BoardView& v : views) v.pixel_covariance_blocks_px2.clear();
+    Result<CameraCalibration> plain = CalibrateCamera(views, 1024, 768, CameraCalibrationOptions{});
+    ASSERT_TRUE(plain.ok()) << plain.status().ToString();
+    ASSERT_FALSE(plain->std_from_pixel_covariances);
+    const auto est = cal->intrinsics.Packed();
+    for (int k = 0; k < 4; ++k) {
+      sum[k] += est[k];
+      sum2[k] += est[k] * est[k];
+      reported[k] += cal->intrinsics_std[k] / trials;
+      residual_based[k] += plain->intrinsics_std[k] / trials;
+    }
+  }
+  const char* names[] = {"fx", "fy", "cx", "cy"};
+  for (int k = 0; k < 4; ++k) {
+    const double mean = sum[k] / trials;
+    const double empirical = std::sqrt(std::max(0.0, (sum2[k] - trials * mean * mean) / (trials - 1)));
+    std::printf("  %s: Monte Carlo std %.4f px, sandwich %.4f px, residual-based %.4f px (means of %d)\n",
+                names[k], empirical, reported[k], residual_based[k], trials);
+    EXPECT_GT(empirical, 0.78 * reported[k]) << names[k];
+    EXPECT_LT(empirical, 1.25 * reported[k]) << names[k];
+    // The residual-based figure is far too small here.
+    EXPECT_LT(residual_based[k], 0.75 * empirical) << names[k];
+  }
+}
+
 std::vector<std::string> SampleChessboardFiles() {
   std::vector<std::string> files;
   for (int i = 1; i <= 14; ++i) {

@@ -8,14 +8,22 @@
 // initialisation, then Levenberg-Marquardt: cv::calibrateCamera, extended
 // form). The result reports what a user needs to trust a calibration: the
 // overall and per-view RMS reprojection error, and the standard deviation of
-// every intrinsic parameter (from the inverse of the Gauss-Newton normal
-// matrix, scaled by the residual variance: sum of squared residuals / (2N - P)
-// for N corners, P free parameters; a first-order figure that assumes
-// independent, equal corner noise and a correct model). OpenCV before 4.8
-// (and 3.4.20) divides by N - P instead (opencv/opencv#19803, fixed by
-// #22992), which
-// overstates every standard deviation by about sqrt(2); this is corrected
-// here, and checked against a Monte Carlo in the tests.
+// every intrinsic parameter, to first order. Two ways:
+//  - views with pixel covariance blocks (BoardView; tag boards: each tag's
+//    4 corners from the edge fit, whose neighbouring corners share an edge
+//    and so have correlated errors): the sandwich
+//      Cov = lambda (J^T J)^-1 J^T Sigma J (J^T J)^-1
+//    of the least-squares estimate under the corners' block covariance
+//    Sigma, with lambda = r^T Sigma^-1 r / (2N - P) (1 when the detector's
+//    covariances are the size of the residuals; it follows them otherwise);
+//  - otherwise (chessboards) the inverse of the Gauss-Newton normal matrix
+//    scaled by the residual variance: sum of squared residuals / (2N - P)
+//    for N corners, P free parameters, which assumes independent, equal
+//    corner noise. OpenCV before 4.8 (and 3.4.20) divides by N - P instead
+//    (opencv/opencv#19803, fixed by #22992), which overstates every standard
+//    deviation by about sqrt(2); this is corrected here, and checked against
+//    a Monte Carlo in the tests.
+// Both assume a correct model (no board or lens model error).
 //
 // Boards:
 //  - TagBoard: a grid of tag36h11 tags (vision/tag_detection.h), numbered
@@ -80,6 +88,12 @@ struct BoardView {
   std::string name;                           // for messages, e.g. "left01.jpg"
   std::vector<Eigen::Vector3d> points_in_board;  // z = 0
   std::vector<Eigen::Vector2d> pixels;           // same order
+  // Optional: the covariance of the pixels [px^2] as blocks along `pixels`:
+  // each block is the full covariance of the next rows() / 2 corners
+  // (x and y of each corner in turn), e.g. 8 x 8 for a tag's 4 corners,
+  // whose edge fits share edges. Empty: unknown (the corners are then taken
+  // as independent, of one common variance; see CalibrateCamera).
+  std::vector<Eigen::MatrixXd> pixel_covariance_blocks_px2{};
 };
 
 struct CameraCalibrationOptions {
@@ -111,6 +125,9 @@ struct CameraCalibration {
   std::vector<int> view_num_corners;   // per view
   int num_views = 0;
   int num_corners = 0;
+  // How intrinsics_std was found (CalibrateCamera): true from the views'
+  // pixel covariance blocks, false from the residuals alone.
+  bool std_from_pixel_covariances = false;
 
   // A few lines: the intrinsics with their std devs, the RMS, the worst views.
   std::string Report() const;

@@ -166,6 +166,11 @@ struct TagDetection {
   double edge_contrast = 0.0; // fitted step b (white - black) [grey levels of the input]; unrefined: quiet zone - border means
   double edge_sigma_px = 0.0; // mean fitted edge spread [px], edge fit only
   double edge_rms = 0.0;      // RMS residual of the edge fits [grey levels], edge fit only
+  // Covariance of corner c with corner (c + 1) % 4, E[(x_c - mu)(x_{c+1} - mu)^T]
+  // [px^2]: through the edge they share (edge fit only; else zero). Corners
+  // c and c + 2 share no edge: uncorrelated.
+  std::array<Eigen::Matrix2d, 4> corner_cross_covariance_px2 = {Eigen::Matrix2d::Zero(), Eigen::Matrix2d::Zero(),
+                                                                Eigen::Matrix2d::Zero(), Eigen::Matrix2d::Zero()};
 };
 
 // Detects the tag36h11 tags in a grayscale image (see above). Tags are

@@ -110,6 +110,12 @@ void Identifier::Candidates(const Seed& seed, std::vector<Hypothesis> hyps, std:
   const int num_sources = static_cast<int>(index_.size());
   std::vector<int> max_count(num_sources, -1), checked(num_sources, 0);
   std::vector<Eigen::Matrix3Xd> eligible(num_sources);
+  // Large point sets: a hypothesis is scored on an evenly strided subset of
+  // at most kScoreSampleSize eligible points, its count scaled by
+  // scale[s] = eligible / sampled (an estimate within a few percent, enough
+  // to rank hypotheses; refinement and the ambiguity test use every point).
+  // Below that size the score is exact, as before.
+  std::vector<double> scale(num_sources, 1.0);
   for (const Hypothesis& h : hyps) max_count[h.source] = std::max(max_count[h.source], h.count);
   const std::array<Eigen::Vector3d, 3> X = {pool_.p[seed.p0], pool_.p[seed.pa], pool_.p[seed.pb]};
   int best_score = -1, stop_tried = -1;
@@ -139,6 +145,13 @@ void Identifier::Candidates(const Seed& seed, std::vector<Hypothesis> hyps, std:
         if (Eligible(i, s)) eligible[s].col(m++) = pool_.p[i];
       }
       eligible[s].conservativeResize(3, m);
+      if (m > kScoreSampleSize) {
+        const Eigen::Index stride = (m + kScoreSampleSize - 1) / kScoreSampleSize;
+        Eigen::Index k = 0;
+        for (Eigen::Index j = 0; j < m; j += stride) eligible[s].col(k++) = eligible[s].col(j);
+        eligible[s].conservativeResize(3, k);
+        scale[s] = static_cast<double>(m) / static_cast<double>(k);
+      }
     }
     const double gate = options_.score_gate_fraction * idx.spacing_rad +
                         (options_.directions_nominal ? options_.nominal_tolerance_rad : 0.0);
@@ -149,7 +162,7 @@ void Identifier::Candidates(const Seed& seed, std::vector<Hypothesis> hyps, std:
     if (PatchPose(s, seed, h.L0, h.g, BestOnPatch(s, seed, h.L0, h.g, poses, np), &poses[0])) np = 1;
     for (int k = 0; k < np; ++k) {
       if (!poses[k].R.allFinite() || !poses[k].t.allFinite()) continue;
-      const int score = Score(s, poses[k], gate, eligible[s]);
+      const int score = static_cast<int>(std::lround(Score(s, poses[k], gate, eligible[s]) * scale[s]));
       if (score >= options_.min_spots) {
         if (score > best_score) best = out->size();
         out->push_back({s, poses[k], score, h.L0, true});

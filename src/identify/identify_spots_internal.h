@@ -74,6 +74,10 @@ struct Detection {
   int conflicts = 0;
 };
 
+// Most eligible points a hypothesis is scored on (Identifier::Candidates):
+// above it, an evenly strided subset and a scaled count.
+inline constexpr Eigen::Index kScoreSampleSize = 4096;
+
 struct Candidate {
   int source = -1;
   PoseRt pose;  // source_from_scene

@@ -73,6 +73,21 @@ bool SendAll(int fd, const std::string& data) {
   return true;
 }
 
+// What a daemon line tells a person: the "error" of a refusal, the "reason"
+// of a disconnect or the "message" of a notice; empty for anything else.
+std::string DaemonText(const json& j) {
+  if (!j.is_object()) return "";
+  for (const char* key : {"error", "reason", "message"}) {
+    if (j.contains(key) && j.at(key).is_string()) return j.at(key).get<std::string>();
+  }
+  return "";
+}
+
+// "the daemon closed the connection", with the last thing it said.
+std::string Closed(const std::string& said) {
+  return "opl_sequencer: the daemon closed the connection" + (said.empty() ? std::string() : ": " + said) + "\n";
+}
+
 int ToMs(double ms) { return ms <= 0 || !std::isfinite(ms) ? 0 : ms > 1e9 ? 1000000000 : static_cast<int>(ms); }
 
 }  // namespace
@@ -98,12 +113,25 @@ int RunClient(const ClientOptions& options, const std::string& request_line, std
     err << "opl_sequencer: cannot connect to the daemon at '" << options.socket_path << "': " << std::strerror(errno) << "\n";
     return kExitNoDaemon;
   }
-  if (!SendAll(fd, request_line + "\n")) {
-    err << "opl_sequencer: sending the request failed: " << std::strerror(errno) << "\n";
-    return kExitNoDaemon;
-  }
   LineReader reader(fd);
   std::string line;
+  std::string said;  // the daemon's last notice, disconnect reason or error
+  if (!SendAll(fd, request_line + "\n")) {
+    const std::string why = std::strerror(errno);
+    // The daemon may have written why it closed the connection ("too many
+    // clients", an idle timeout) before closing it: say that, not EPIPE.
+    while (reader.Next(&line, 200) == 1) {
+      json j = json::parse(line, nullptr, false);
+      if (!DaemonText(j).empty()) said = DaemonText(j);
+      if (j.is_object() && j.contains("ok") && j.at("ok").is_boolean() && !j.at("ok").get<bool>()) {
+        out << line << "\n" << std::flush;
+        err << "opl_sequencer: the daemon refused: " << said << "\n";
+        return kExitRefused;
+      }
+    }
+    err << "opl_sequencer: sending the request failed: " << why << (said.empty() ? "" : " (the daemon said: " + said + ")") << "\n";
+    return kExitNoDaemon;
+  }
   // The reply: the first line that is not an event.
   for (;;) {
     const int r = reader.Next(&line, ToMs(options.reply_timeout_ms));
@@ -112,17 +140,21 @@ int RunClient(const ClientOptions& options, const std::string& request_line, std
       return kExitNoDaemon;
     }
     if (r != 1) {
-      err << "opl_sequencer: the daemon closed the connection\n";
+      err << Closed(said);
       return kExitNoDaemon;
     }
     out << line << "\n" << std::flush;
     json j = json::parse(line, nullptr, false);
+    if (!DaemonText(j).empty()) said = DaemonText(j);
     if (j.is_object() && j.contains("event")) continue;
     if (!j.is_object() || !j.contains("ok") || !j.at("ok").is_boolean()) {
       err << "opl_sequencer: unexpected reply\n";
       return kExitNoDaemon;
     }
-    if (!j.at("ok").get<bool>()) return kExitRefused;
+    if (!j.at("ok").get<bool>()) {
+      err << "opl_sequencer: the daemon refused: " << said << "\n";
+      return kExitRefused;
+    }
     break;
   }
   if (options.follow == FollowMode::kNone) return kExitOk;
@@ -134,6 +166,7 @@ int RunClient(const ClientOptions& options, const std::string& request_line, std
       reader.Next(&line, 0);
       out << line << "\n" << std::flush;
       json j = json::parse(line, nullptr, false);
+      if (!DaemonText(j).empty()) said = DaemonText(j);
       if (!j.is_object() || !j.contains("event") || !j.at("event").is_string()) continue;
       const std::string ev = j.at("event").get<std::string>();
       if (ev == "shutdown" || ev == "gpio_error") return kExitSequenceFailed;
@@ -157,7 +190,7 @@ int RunClient(const ClientOptions& options, const std::string& request_line, std
       return kExitNoDaemon;
     }
     if (p[0].revents != 0 && !reader.Fill() && !reader.HasLine()) {
-      err << "opl_sequencer: the daemon closed the connection\n";
+      err << Closed(said);
       return kExitNoDaemon;
     }
     if (watch_stdin && p[1].revents != 0) {
@@ -171,7 +204,7 @@ int RunClient(const ClientOptions& options, const std::string& request_line, std
         while ((nl = stdin_buf.find('\n')) != std::string::npos) {
           stdin_buf.erase(0, nl + 1);
           if (!SendAll(fd, "{\"cmd\":\"next_slice\"}\n")) {
-            err << "opl_sequencer: the daemon closed the connection\n";
+            err << Closed(said);
             return kExitNoDaemon;
           }
         }

@@ -68,7 +68,8 @@ class Reader {
 SequencerConfig FromJson(const json& root) {
   SequencerConfig c;
   Reader top("");
-  top.CheckKeys(root, {"gpio", "lines", "timings_ms", "socket", "metadata", "max_message_bytes", "max_clients"});
+  top.CheckKeys(root, {"gpio", "lines", "timings_ms", "socket", "metadata", "max_message_bytes", "max_clients",
+                      "client_idle_timeout_ms"});
   if (root.contains("gpio")) {
     Reader r("gpio.");
     const json& g = root.at("gpio");
@@ -109,6 +110,7 @@ SequencerConfig FromJson(const json& root) {
   c.metadata_path = top.String(root, "metadata", c.metadata_path);
   c.max_message_bytes = static_cast<std::size_t>(std::max(0LL, top.Integer(root, "max_message_bytes", 4096)));
   c.max_clients = static_cast<int>(top.Integer(root, "max_clients", c.max_clients));
+  c.client_idle_timeout_ms = top.Number(root, "client_idle_timeout_ms", c.client_idle_timeout_ms);
   return c;
 }
 
@@ -170,6 +172,9 @@ bool SequencerConfig::IsValid(std::string* error) const {
     return fail("max_message_bytes = " + std::to_string(max_message_bytes) + ": must be 64 .. 1048576");
   }
   if (max_clients < 1 || max_clients > 1024) return fail("max_clients = " + std::to_string(max_clients) + ": must be 1 .. 1024");
+  if (!(client_idle_timeout_ms == 0 || (client_idle_timeout_ms >= 100 && client_idle_timeout_ms <= 86400000))) {
+    return fail("client_idle_timeout_ms = " + Num(client_idle_timeout_ms) + ": must be 0 (never) or 100 .. 86400000");
+  }
   return true;
 }
 

@@ -22,6 +22,7 @@
 #include <vector>
 
 #include <nlohmann/json.hpp>
+#include <systemd/sd-daemon.h>
 
 #include "opl/sequencer/clock.h"
 #include "opl/sequencer/gpio.h"
@@ -60,44 +61,37 @@ class Fd {
   int fd_;
 };
 
-// sd_notify(3) without libsystemd: datagrams to $NOTIFY_SOCKET.
+// The service manager's side: sd_notify(3) and the watchdog period of
+// sd_watchdog_enabled(3) (libsystemd). Outside systemd ($NOTIFY_SOCKET
+// unset) both are no-ops.
 class SystemdNotifier {
  public:
   SystemdNotifier() {
-    const char* path = std::getenv("NOTIFY_SOCKET");
-    if (path == nullptr || path[0] == '\0') return;
-    const std::size_t len = std::strlen(path);
-    if (len >= sizeof(addr_.sun_path) || (path[0] != '/' && path[0] != '@')) return;
-    addr_.sun_family = AF_UNIX;
-    std::memcpy(addr_.sun_path, path, len);
-    if (path[0] == '@') addr_.sun_path[0] = '\0';  // abstract namespace
-    addr_len_ = static_cast<socklen_t>(offsetof(sockaddr_un, sun_path) + len);
-    fd_.Reset(::socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0));
-    const char* usec = std::getenv("WATCHDOG_USEC");
-    const char* pid = std::getenv("WATCHDOG_PID");
-    const bool for_us = pid == nullptr || std::strtol(pid, nullptr, 10) == static_cast<long>(::getpid());
-    if (usec != nullptr && for_us) {
-      const long long us = std::strtoll(usec, nullptr, 10);
-      if (us > 0) watchdog_interval_ns_ = us * 1000 / 2;  // ping at half the timeout
+    std::uint64_t usec = 0;
+    // > 0 only when $WATCHDOG_USEC is set and $WATCHDOG_PID is unset or ours.
+    if (sd_watchdog_enabled(0, &usec) > 0 && usec > 0) {
+      watchdog_interval_ns_ = static_cast<std::int64_t>(usec) * 1000 / 2;  // ping at half the timeout
     }
   }
-  void Send(const std::string& state) noexcept {
-    if (fd_.get() < 0) return;
-    (void)::sendto(fd_.get(), state.data(), state.size(), MSG_NOSIGNAL,
-                   reinterpret_cast<const sockaddr*>(&addr_), addr_len_);
-  }
+  void Send(const std::string& state) noexcept { (void)sd_notify(0, state.c_str()); }
   // 0: no watchdog.
   std::int64_t watchdog_interval_ns() const { return watchdog_interval_ns_; }
 
  private:
-  Fd fd_;
-  sockaddr_un addr_{};
-  socklen_t addr_len_ = 0;
   std::int64_t watchdog_interval_ns_ = 0;
 };
 
+// A connection beyond config.max_clients takes a reserve slot: it may only
+// abort, switch a laser off or ask for status (so a crowd of idle
+// connections can never lock out the way to stop a laser), is closed after
+// kReserveIdleMs without a request, and when all reserve slots are taken the
+// oldest reserve connection gives its slot to the newest.
+constexpr double kReserveIdleMs = 2000.0;
+
 struct Client {
   int fd = -1;
+  bool reserve = false;    // in a reserve slot (see kReserveClientSlots)
+  std::int64_t last_active_ns = 0;  // accept, last request line, or last time it was exempt from the idle timeout
   std::string in;          // bytes of the current, incomplete line
   bool discarding = false; // inside an oversized line: drop bytes up to '\n'
   std::string out;         // bytes not yet sent
@@ -127,10 +121,20 @@ class Daemon {
   void HandleLine(std::uint64_t id, Client& c, const std::string& line);
   json HandleRequest(std::uint64_t id, Client& c, const json& request);
   json StatusJson() const;
+  std::string ReserveRefusal() const {
+    return "too many clients (max " + std::to_string(config_.max_clients) +
+           "): this connection may only abort, switch a laser off or ask for status";
+  }
   void DispatchEvents();
   void ReapDeadClients();
   void Disconnect(std::uint64_t id);
   void UpdateEpoll(std::uint64_t id, Client& c);
+  // Idle timeout of a client in ms at this moment; 0 = none (subscribed, or
+  // the owner of the running sequence or a manual laser).
+  double IdleTimeoutMs(std::uint64_t id, const Client& c) const;
+  void ExpireIdleClients();
+  std::int64_t NextIdleDeadlineNs() const;
+  bool Owns(std::uint64_t id) const { return id == sequence_owner_ || id == laser_owner_[0] || id == laser_owner_[1]; }
 
   SequencerConfig config_;
   std::shared_ptr<const Clock> clock_;
@@ -204,8 +208,41 @@ Status Daemon::SetUpSocket() {
   return Status::Ok();
 }
 
+double Daemon::IdleTimeoutMs(std::uint64_t id, const Client& c) const {
+  if (c.reserve) return kReserveIdleMs;
+  if (c.subscribed || Owns(id)) return 0.0;
+  return config_.client_idle_timeout_ms;
+}
+
+std::int64_t Daemon::NextIdleDeadlineNs() const {
+  std::int64_t next = Sequencer::kNoDeadline;
+  for (const auto& [id, c] : clients_) {
+    const double ms = IdleTimeoutMs(id, c);
+    if (c.dead || ms <= 0) continue;
+    next = std::min(next, c.last_active_ns + static_cast<std::int64_t>(ms * 1e6));
+  }
+  return next;
+}
+
+void Daemon::ExpireIdleClients() {
+  const std::int64_t now = clock_->NowNs();
+  for (auto& [id, c] : clients_) {
+    if (c.dead) continue;
+    const double ms = IdleTimeoutMs(id, c);
+    if (ms <= 0) {
+      c.last_active_ns = now;  // its idle time starts when the exemption ends
+      continue;
+    }
+    if (now - c.last_active_ns < static_cast<std::int64_t>(ms * 1e6)) continue;
+    std::string ms_text = std::to_string(static_cast<long long>(ms));
+    Send(id, c, {{"event", "disconnect"},
+                 {"reason", std::string(c.reserve ? "reserve slot " : "") + "idle for " + ms_text + " ms without a request"}});
+    c.dead = true;
+  }
+}
+
 void Daemon::ArmTimer() {
-  std::int64_t deadline = std::min(seq_->NextDeadlineNs(), next_watchdog_ns_);
+  std::int64_t deadline = std::min({seq_->NextDeadlineNs(), next_watchdog_ns_, NextIdleDeadlineNs()});
   itimerspec its{};
   if (deadline != Sequencer::kNoDeadline) {
     if (deadline <= 0) deadline = 1;
@@ -256,11 +293,21 @@ void Daemon::Accept() {
   for (;;) {
     const int fd = ::accept4(listen_.get(), nullptr, nullptr, SOCK_NONBLOCK | SOCK_CLOEXEC);
     if (fd < 0) return;  // EAGAIN, or a transient error: the loop goes on
-    if (static_cast<int>(clients_.size()) >= config_.max_clients) {
-      const std::string line = "{\"ok\":false,\"error\":\"too many clients (max " + std::to_string(config_.max_clients) + ")\"}\n";
-      (void)::send(fd, line.data(), line.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
-      ::close(fd);
-      continue;
+    int regular = 0, reserve = 0;
+    std::uint64_t oldest_reserve = 0;
+    for (const auto& [cid, other] : clients_) {
+      if (other.dead) continue;
+      if (!other.reserve) {
+        ++regular;
+      } else if (reserve++ == 0) {
+        oldest_reserve = cid;  // ids grow with time: the first is the oldest
+      }
+    }
+    const bool in_reserve = regular >= config_.max_clients;
+    if (in_reserve && reserve >= kReserveClientSlots) {
+      Client& old = clients_.at(oldest_reserve);
+      Send(oldest_reserve, old, {{"event", "disconnect"}, {"reason", "reserve slot taken by a newer connection"}});
+      old.dead = true;
     }
     const std::uint64_t id = next_client_id_++;
     epoll_event ev{};
@@ -272,7 +319,12 @@ void Daemon::Accept() {
     }
     Client c;
     c.fd = fd;
-    clients_.emplace(id, std::move(c));
+    c.reserve = in_reserve;
+    c.last_active_ns = clock_->NowNs();
+    Client& added = clients_.emplace(id, std::move(c)).first->second;
+    if (in_reserve) {
+      Send(id, added, {{"event", "notice"}, {"message", ReserveRefusal()}});
+    }
   }
 }
 
@@ -316,6 +368,7 @@ void Daemon::ReadClient(std::uint64_t id, Client& c) {
 }
 
 void Daemon::HandleLine(std::uint64_t id, Client& c, const std::string& raw) {
+  c.last_active_ns = clock_->NowNs();
   std::string line = raw;
   if (!line.empty() && line.back() == '\r') line.pop_back();
   json reply;
@@ -360,7 +413,8 @@ json Daemon::StatusJson() const {
   j["trigger"] = static_cast<bool>(s.active[3]);
   j["metadata"] = s.metadata_path;
   j["last_error"] = s.last_error;
-  j["clients"] = clients_.size();
+  j["clients"] = std::count_if(clients_.begin(), clients_.end(), [](const auto& kv) { return !kv.second.reserve; });
+  j["reserve_clients"] = std::count_if(clients_.begin(), clients_.end(), [](const auto& kv) { return kv.second.reserve; });
   j["chip"] = chip_description_;
   return j;
 }
@@ -371,6 +425,11 @@ json Daemon::HandleRequest(std::uint64_t id, Client& c, const json& request) {
   if (!request.is_object()) return error("request must be a JSON object");
   if (!request.contains("cmd") || !request.at("cmd").is_string()) return error("request needs \"cmd\" (a string)");
   const std::string cmd = request.at("cmd").get<std::string>();
+  if (c.reserve) {
+    const bool laser_off = cmd == "laser" && request.contains("on") && request.at("on").is_boolean() &&
+                           !request.at("on").get<bool>();
+    if (cmd != "abort" && cmd != "status" && !laser_off) return error(ReserveRefusal());
+  }
   auto check_keys = [&](std::initializer_list<const char*> allowed) -> std::string {
     for (auto it = request.begin(); it != request.end(); ++it) {
       if (it.key() == "cmd" || it.key() == "id") continue;
@@ -570,6 +629,7 @@ int Daemon::Run(std::string* message) {
   while (!stop_) {
     seq_->OnTime();
     DispatchEvents();
+    ExpireIdleClients();
     ReapDeadClients();
     if (seq_->faulted()) {
       code = kExitGpioRuntime;

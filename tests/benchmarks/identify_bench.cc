@@ -43,3 +43,40 @@ void BM_IdentifyTwoGrids(benchmark::State& state) {
 BENCHMARK(BM_IdentifyTwoGrids)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace
+
+namespace {
+
+// Large unassigned sets (issue 19 item 8): two sources of n x n beams over
+// 29 deg at 1 m on a plane, 10 % clutter (half of it near real spots), none
+// missing. The spot noise and the calibration's departure from the design
+// shrink with the spacing (x 10 / (n - 1)), so that every n is the 11 x 11
+// bench scene made denser, identifiable alike.
+// state.range(0) = n: 71 (~1.1e4 points), 121 (~3.2e4), 201 (~8.9e4).
+void BM_IdentifyLargeUnassignedSet(benchmark::State& state) {
+  opl::test::IdentifySceneOptions o;
+  o.sources = 2;
+  o.beams_per_side = static_cast<int>(state.range(0));
+  const double denser = 10.0 / (o.beams_per_side - 1);
+  o.noise_mm *= denser;
+  o.perturbation_rad *= denser;
+  o.surface = 0;
+  o.max_missing = 0.0;
+  o.max_spurious = 0.1;
+  o.min_distance_mm = 1000.0;
+  o.max_distance_mm = 1000.0;
+  const opl::test::IdentifyScene scene = opl::test::MakeIdentifyScene(7, o);
+  opl::IdentifyOptions options;
+  options.num_threads = 2;
+  int assigned = 0;
+  for (auto _ : state) {
+    auto r = opl::IdentifySpots(scene.calibration, scene.spots, options);
+    assigned = r.ok() ? r->num_assigned() : -1;
+    benchmark::DoNotOptimize(r);
+  }
+  state.counters["points"] = static_cast<double>(scene.spots.size());
+  state.counters["real"] = scene.real;
+  state.counters["assigned"] = assigned;
+}
+BENCHMARK(BM_IdentifyLargeUnassignedSet)->Arg(71)->Arg(121)->Arg(201)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(1);
+
+}  // namespace

@@ -78,8 +78,15 @@ struct SequencerConfig {
   // Longest request line, bytes, newline excluded; longer lines get an error
   // reply and are discarded. 64 .. 1 MiB.
   std::size_t max_message_bytes = 4096;
-  // Most clients connected at once; further ones get an error and are closed.
+  // Most clients connected at once. A connection beyond them takes one of
+  // kReserveClientSlots reserve slots (daemon.h), which accept only abort,
+  // laser off and status.
   int max_clients = 16;
+
+  // A client that has sent no request line for this long is told why and
+  // disconnected, unless it is subscribed or owns the running sequence or a
+  // manual laser (its silence is then expected). 0: never. 0 or 100 .. 86400000.
+  double client_idle_timeout_ms = 60000.0;
 
   const LineConfig& line(LineRole role) const { return lines[static_cast<std::size_t>(role)]; }
   LineConfig& line(LineRole role) { return lines[static_cast<std::size_t>(role)]; }

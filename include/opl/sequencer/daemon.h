@@ -13,6 +13,12 @@
 // echoed when it had one); asynchronous {"event":...} lines go to the client
 // that owns the running sequence or a manual laser, and to subscribers.
 //
+// Clients: at most max_clients regular ones, plus kReserveClientSlots
+// reserve ones (below). A regular client that sends no request line for
+// client_idle_timeout_ms (and is neither subscribed nor the owner of the
+// running sequence or a manual laser) gets {"event":"disconnect","reason":...}
+// and is closed.
+//
 // Safety: every line is driven off at start, on SIGTERM/SIGINT/SIGHUP (then
 // the daemon exits 0), when the owner of a sequence or of a manual laser
 // disconnects, when a laser deadline passes, on abort, and on a GPIO error
@@ -25,6 +31,12 @@
 #include "opl/sequencer/config.h"
 
 namespace opl::sequencer {
+
+// Connections accepted beyond SequencerConfig::max_clients: each may only
+// abort, switch a laser off or ask for status, and is closed after 2 s
+// without a request; when all are taken, the oldest gives way to the newest.
+// So a crowd of idle connections never locks out stopping the lasers.
+inline constexpr int kReserveClientSlots = 4;
 
 // Exit codes of opl_sequencer (daemon and client subcommands).
 enum ExitCode : int {

@@ -98,6 +98,21 @@ std::string StripNlohmann(const std::string& what) {
 
 }  // namespace
 
+std::string JsonErrorForMessage(const std::string& what) {
+  std::string s = StripNlohmann(what);
+  const std::string last_read = "last read: '";
+  const size_t start = s.find(last_read);
+  if (start != std::string::npos) {
+    const size_t from = start + last_read.size();
+    size_t end = s.find("'; expected", from);
+    if (end == std::string::npos) end = s.rfind('\'');
+    if (end != std::string::npos && end >= from) {
+      s = s.substr(0, from) + SafeForMessage(s.substr(from, end - from), 40) + s.substr(end);
+    }
+  }
+  return SafeForMessage(s, 300);
+}
+
 Status CheckJsonDepth(const std::string& text, const std::string& name) {
   int depth = 0;
   bool in_string = false;
@@ -139,10 +154,10 @@ Result<json> JsonReader::ParseText(const std::string& text) const {
   } catch (const json::parse_error& e) {
     const auto [line, column] = LineColumn(text, e.byte > 0 ? e.byte - 1 : 0);
     return Status::ParseError(name_ + ":" + std::to_string(line) + ":" + std::to_string(column) +
-                              ": invalid JSON: " + StripNlohmann(e.what()));
+                              ": invalid JSON: " + JsonErrorForMessage(e.what()));
   } catch (const json::exception& e) {
     // e.g. out_of_range.406 "number overflow parsing '1e999'": locate the literal.
-    const std::string what = StripNlohmann(e.what());
+    const std::string what = JsonErrorForMessage(e.what());
     std::string where = name_;
     const size_t q = what.find('\'');
     const size_t q2 = q == std::string::npos ? q : what.find('\'', q + 1);

@@ -30,6 +30,13 @@ constexpr int kMaxJsonDepth = 64;
 // run before parsing (the parser then reports any other syntax error).
 Status CheckJsonDepth(const std::string& text, const std::string& name);
 
+// nlohmann's exception text made fit for a one-line message (issue 19 item
+// 7): the "[json.exception...] parse error at line L, column C: " head
+// dropped, the token after "last read: " cut at 40 bytes (it may be a whole
+// 1 MB line), control characters escaped (nlohmann escapes < 0x20 but not
+// DEL) and the whole cut at 300 bytes.
+std::string JsonErrorForMessage(const std::string& what);
+
 class JsonReader {
  public:
   using json = nlohmann::json;

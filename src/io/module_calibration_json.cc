@@ -355,17 +355,13 @@ Result<ModuleCalibration> ParseModuleCalibrationJson(const std::string& text,
         ++column;
       }
     }
-    std::string what = e.what();
-    const size_t colon = what.find(": ");
-    if (colon != std::string::npos) what = what.substr(colon + 2);
     return Status::ParseError(name + ":" + std::to_string(line) + ":" + std::to_string(column) +
-                              ": JSON syntax error: " + what);
+                              ": JSON syntax error: " +
+                              json_internal::JsonErrorForMessage(e.what()));
   } catch (const json::exception& e) {
     // e.g. out_of_range.406 "number overflow parsing '1e999'" (no position).
-    std::string what = e.what();
-    const size_t bracket = what.find("] ");
-    if (bracket != std::string::npos) what = what.substr(bracket + 2);
-    return Status::ParseError(name + ": JSON error: " + what);
+    return Status::ParseError(name + ": JSON error: " +
+                              json_internal::JsonErrorForMessage(e.what()));
   }
   const Fields f(name);
   if (!doc.is_object()) {

@@ -187,9 +187,9 @@ Status JsonReader::Error(const std::string& path, const std::string& what) const
 }
 
 std::string JsonReader::Describe(const json& v) {
-  std::string d = v.dump();
-  if (d.size() > 40) d = d.substr(0, 37) + "...";
-  return d;
+  // Escaped: nlohmann escapes control characters below 0x20 in strings, not DEL.
+  const std::string d = v.dump();
+  return d.size() > 40 ? SafeForMessage(d, 37) : SafeForMessage(d, 40);
 }
 
 Status JsonReader::CheckObject(const json& v, const std::string& path) const {

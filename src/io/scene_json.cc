@@ -12,6 +12,7 @@
 #include "io/scene_camera_json.h"
 #include "io/module_design_json_internal.h"
 #include "opl/core/format.h"
+#include "opl/core/message_text.h"
 #include "opl/io/atomic_file.h"
 #include "opl/io/module_design_json.h"
 #include "opl/vision/shot_image.h"
@@ -287,8 +288,13 @@ class SceneReader : public json_internal::JsonReader {
       if (p.is_relative() && !base_dir_.empty()) p = std::filesystem::path(base_dir_) / p;
       Result<ModuleDesign> design = ReadModuleDesignJson(p.string());
       if (!design.ok()) {
-        return Status(design.status().code(),
-                      Error("module", design.status().message()).message());
+        // The design reader's messages start with the path, which comes from
+        // this file: escaped and cut like any other echoed text.
+        std::string message = design.status().message();
+        if (message.compare(0, p.string().size(), p.string()) == 0) {
+          message = SafeForMessage(p.string()) + message.substr(p.string().size());
+        }
+        return Status(design.status().code(), Error("module", message).message());
       }
       scene->module = std::move(*design);
       return Status::Ok();

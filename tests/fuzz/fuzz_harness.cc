@@ -57,14 +57,18 @@ std::string OpsText(const std::vector<MutationOp>& ops) {
 }
 
 // Saves a failing input and its line in findings.txt; returns the file path.
+// The file keeps the extension of the seed it was made from (a target may
+// choose the format by it), so that a findings folder replays as a corpus.
 std::string SaveFinding(const FuzzSettings& settings, const std::string& format,
-                        const std::string& case_name, const std::string& input,
-                        const std::string& line) {
+                        const std::string& case_name, const std::string& seed_name,
+                        const std::string& input, const std::string& line) {
   if (settings.findings_dir.empty()) return "";
   const std::filesystem::path dir = std::filesystem::path(settings.findings_dir) / format;
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
-  const std::string path = (dir / (case_name + ".bin")).string();
+  std::string extension = std::filesystem::path(seed_name).extension().string();
+  if (extension.empty()) extension = ".bin";
+  const std::string path = (dir / (case_name + extension)).string();
   std::ofstream(path, std::ios::binary) << input;
   std::ofstream(std::filesystem::path(settings.findings_dir) / "findings.txt", std::ios::app)
       << format << " " << case_name << " " << line << "\n";
@@ -85,9 +89,10 @@ class Watchdog {
     wake_.notify_all();
     thread_.join();
   }
-  void Start(const std::string& case_name, const std::string& input) {
+  void Start(const std::string& case_name, const std::string& seed_name, const std::string& input) {
     std::lock_guard<std::mutex> lock(mutex_);
     case_name_ = case_name;
+    seed_name_ = seed_name;
     input_ = input;
     started_ = std::chrono::steady_clock::now();
     running_ = true;
@@ -107,7 +112,7 @@ class Watchdog {
           std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
       if (seconds > settings_.hang_seconds) {
         const std::string line = "hang: no answer after " + std::to_string(seconds) + " s";
-        const std::string path = SaveFinding(settings_, format_, case_name_, input_, line);
+        const std::string path = SaveFinding(settings_, format_, case_name_, seed_name_, input_, line);
         std::fprintf(stderr, "fuzz %s %s: %s%s%s\n", format_.c_str(), case_name_.c_str(),
                      line.c_str(), path.empty() ? "" : "; input saved as ", path.c_str());
         std::fflush(stderr);
@@ -121,7 +126,7 @@ class Watchdog {
   std::mutex mutex_;
   std::condition_variable wake_;
   bool stop_ = false, running_ = false;
-  std::string case_name_, input_;
+  std::string case_name_, seed_name_, input_;
   std::chrono::steady_clock::time_point started_;
   std::thread thread_;  // last: started after the members it reads
 };
@@ -203,7 +208,7 @@ FuzzStats RunFuzzOnCorpus(const std::string& format, const std::vector<CorpusEnt
   auto run_one = [&](const std::string& case_name, const std::string& input,
                      const std::string& seed_name, const std::string& ops) {
     TargetResult result;
-    watchdog.Start(case_name, input);
+    watchdog.Start(case_name, seed_name, input);
     const auto start = std::chrono::steady_clock::now();
     try {
       result = target(input, seed_name);
@@ -226,7 +231,7 @@ FuzzStats RunFuzzOnCorpus(const std::string& format, const std::vector<CorpusEnt
     if (result.problem.empty()) return;
     ++stats.problems;
     const std::string line = "from " + seed_name + " by " + ops + ": " + result.problem;
-    const std::string saved = SaveFinding(settings, format, case_name, input, line);
+    const std::string saved = SaveFinding(settings, format, case_name, seed_name, input, line);
     ADD_FAILURE() << "fuzz " << format << " case " << case_name << " (OPL_FUZZ_SEED="
                   << settings.seed << ") " << line
                   << (saved.empty() ? "" : "\n  input saved as " + saved);

@@ -110,7 +110,8 @@ def main():
     run("opl_calibrate", "--spots", os.path.join(tmp, "slices.csv"), "--out",
         os.path.join(tmp, "calibrated.json"))
 
-    shutil.rmtree(CORPUS, ignore_errors=True)
+    # Files are overwritten, not removed first: the corpus also holds the
+    # fuzzer's own findings (found_*, copied from a findings folder).
     spots_raw = read(os.path.join(tmp, "spots.csv"))
     spots = keep_columns(no_provenance(spots_raw), ["source", "beam", "x", "y", "z", "sx", "sy", "sz"])
     slices = keep_columns(no_provenance(slices_raw),
@@ -243,6 +244,19 @@ def main():
         write("scene_json", cal_scene["module"],
               read(os.path.join(EXAMPLES, os.path.basename(cal_scene["module"][4:]))))
     write("scene_json", "calibration_session_small.json", json.dumps(cal_scene, indent=1))
+
+    # --- the tools' scene (tests/fuzz/cli_fuzz_test.cc): one 320 x 240 camera, two shots
+    tiny = json.loads(read(os.path.join(EXAMPLES, "scene_small.json")))
+    tiny["description"] = ("Fuzz corpus of the tools: examples/scene_small.json with one "
+                           "320 x 240 camera (cam0), two shots.")
+    cam = tiny["cameras"][0]
+    cam["width_px"], cam["height_px"] = 320, 240
+    cam["intrinsics"].update({"fx": 312.5, "fy": 312.5, "cx": 159.5, "cy": 119.5})
+    tiny["cameras"] = [cam]
+    tiny["shots"] = [s for s in tiny["shots"] if s["camera"] == "cam0"]
+    tiny["module"] = "aux/module.json"
+    write("cli_scene_json", "tiny_scene.json", json.dumps(tiny, indent=1) + "\n")
+    write("cli_scene_json", "aux/module.json", read(os.path.join(EXAMPLES, "scene_small_module.json")))
 
     # --- cameras JSON (opl_scene init --cameras); item 6: intrinsics out of range
     camera = {"name": "cam0", "width_px": 640, "height_px": 480,

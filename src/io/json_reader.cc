@@ -113,6 +113,11 @@ std::string JsonErrorForMessage(const std::string& what) {
   return SafeForMessage(s, 300);
 }
 
+std::string WithSafePathPrefix(const std::string& message, const std::string& path) {
+  if (message.compare(0, path.size(), path) != 0) return message;
+  return SafeForMessage(path) + message.substr(path.size());
+}
+
 Status CheckJsonDepth(const std::string& text, const std::string& name) {
   int depth = 0;
   bool in_string = false;

@@ -37,6 +37,12 @@ Status CheckJsonDepth(const std::string& text, const std::string& name);
 // DEL) and the whole cut at 300 bytes.
 std::string JsonErrorForMessage(const std::string& what);
 
+// `message` (of a reader given `path`, a path taken from a JSON file, e.g. a
+// scene's module or a design's pattern_file) with its leading `path` escaped
+// and cut like any other echoed text (SafeForMessage): the path is the
+// file's content, and may hold control characters or be 80 KB long.
+std::string WithSafePathPrefix(const std::string& message, const std::string& path);
+
 class JsonReader {
  public:
   using json = nlohmann::json;

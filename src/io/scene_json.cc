@@ -12,7 +12,6 @@
 #include "io/scene_camera_json.h"
 #include "io/module_design_json_internal.h"
 #include "opl/core/format.h"
-#include "opl/core/message_text.h"
 #include "opl/io/atomic_file.h"
 #include "opl/io/module_design_json.h"
 #include "opl/vision/shot_image.h"
@@ -288,12 +287,9 @@ class SceneReader : public json_internal::JsonReader {
       if (p.is_relative() && !base_dir_.empty()) p = std::filesystem::path(base_dir_) / p;
       Result<ModuleDesign> design = ReadModuleDesignJson(p.string());
       if (!design.ok()) {
-        // The design reader's messages start with the path, which comes from
-        // this file: escaped and cut like any other echoed text.
-        std::string message = design.status().message();
-        if (message.compare(0, p.string().size(), p.string()) == 0) {
-          message = SafeForMessage(p.string()) + message.substr(p.string().size());
-        }
+        // The design reader's messages start with the path, from this file.
+        const std::string message =
+            json_internal::WithSafePathPrefix(design.status().message(), p.string());
         return Status(design.status().code(), Error("module", message).message());
       }
       scene->module = std::move(*design);

@@ -384,8 +384,9 @@ class PlyScaler {
   }
 
   std::string RecordWhere(const PlyElement& element, int64_t index, int64_t offset) const {
-    return in_.path() + ": byte " + std::to_string(offset) + ": " + element.name + " " +
-           std::to_string(index) + " of " + std::to_string(element.count);
+    return in_.path() + ": byte " + std::to_string(offset) + ": " +
+           SafeForMessage(element.name, 40) + " " + std::to_string(index) + " of " +
+           std::to_string(element.count);
   }
   Status Truncated(const PlyElement& element, int64_t index, int64_t offset) const {
     return Status::ParseError(RecordWhere(element, index, offset) +
@@ -544,12 +545,12 @@ class PlyScaler {
       Result<bool> more = NextLine(in_, &pos_, line_number_, &line);
       if (!more.ok()) return more.status();
       auto where = [&] {  // only on errors: no allocation per record
-        return in_.path() + ":" + std::to_string(line_number_) + ": " + element.name + " " +
-               std::to_string(index);
+        return in_.path() + ":" + std::to_string(line_number_) + ": " +
+               SafeForMessage(element.name, 40) + " " + std::to_string(index);
       };
       if (!*more) {
         return Status::ParseError(in_.path() + ":" + std::to_string(line_number_) +
-                                  ": the file ends at " + element.name + " " +
+                                  ": the file ends at " + SafeForMessage(element.name, 40) + " " +
                                   std::to_string(index) + " of " + std::to_string(element.count) +
                                   " (truncated, or wrong counts in the header)");
       }
@@ -569,8 +570,8 @@ class PlyScaler {
         const PlyProperty& property = element.properties[i];
         const char *b, *te;
         if (!next_token(&b, &te)) {
-          return Status::ParseError(where() + ": too few values (no value for property '" +
-                                    property.name + "')");
+          return Status::ParseError(where() + ": too few values (no value for property " +
+                                    QuoteForMessage(property.name) + ")");
         }
         if (property.is_list) {
           int64_t count = -1;

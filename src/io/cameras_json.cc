@@ -48,7 +48,8 @@ Result<std::vector<SceneCamera>> ParseCamerasJson(const std::string& text, const
     OPL_RETURN_IF_ERROR(json_internal::ParseSceneCamera(r, (*v)[k], path, &camera));
     if (camera.name.empty()) return r.Error(JsonReader::Join(path, "name"), "must not be empty");
     if (!names.insert(camera.name).second) {
-      return r.Error(JsonReader::Join(path, "name"), "duplicate camera name " + QuoteForMessage(camera.name));
+      return r.Error(JsonReader::Join(path, "name"),
+                     "duplicate camera name " + QuoteForMessage(camera.name));
     }
     cameras.push_back(std::move(camera));
   }

@@ -181,7 +181,8 @@ Result<PlyHeader> ParsePlyHeader(std::string_view text, const std::string& name)
           return error("unknown type " + Shown(w[2]));
         }
         if (!IsIntegerType(property.count_type)) {
-          return error("the count of list " + QuoteForMessage(std::string(w[4])) + " must be an integer type, got " +
+          return error("the count of list " + QuoteForMessage(std::string(w[4])) +
+                       " must be an integer type, got " +
                        Shown(w[2]));
         }
         if (!ParseScalarType(w[3], &property.type)) return error("unknown type " + Shown(w[3]));
@@ -435,7 +436,8 @@ class PlyScaler {
     }
     if (record == 0) return Status::Ok();  // no properties: no bytes
     if (record > static_cast<int64_t>(in_.capacity())) {
-      return Status::ParseError(in_.path() + ": element " + QuoteForMessage(element.name) + ": records of " +
+      return Status::ParseError(in_.path() + ": element " + QuoteForMessage(element.name) +
+                                ": records of " +
                                 std::to_string(record) + " bytes are larger than the " +
                                 std::to_string(in_.capacity()) + "-byte buffer");
     }
@@ -483,7 +485,8 @@ class PlyScaler {
       const int64_t count = ReadInteger(p + at, property.count_type, swap_);
       if (count < 0) {
         return Status::ParseError(RecordWhere(element, index, in_.offset() + (p - in_.data())) +
-                                  ": list " + QuoteForMessage(property.name) + " has a negative count " +
+                                  ": list " + QuoteForMessage(property.name) +
+                                  " has a negative count " +
                                   std::to_string(count));
       }
       at += count_bytes + static_cast<size_t>(count) * static_cast<size_t>(PlyScalarBytes(property.type));
@@ -577,12 +580,14 @@ class PlyScaler {
           int64_t count = -1;
           const std::from_chars_result r = std::from_chars(b, te, count);
           if (r.ec != std::errc() || r.ptr != te || count < 0) {
-            return Status::ParseError(where() + ": list " + QuoteForMessage(property.name) + ": not a count: " +
+            return Status::ParseError(where() + ": list " + QuoteForMessage(property.name) +
+                                      ": not a count: " +
                                       Shown(std::string_view(b, static_cast<size_t>(te - b))));
           }
           for (int64_t j = 0; j < count; ++j) {
             if (!next_token(&b, &te)) {
-              return Status::ParseError(where() + ": too few values (list " + QuoteForMessage(property.name) +
+              return Status::ParseError(where() + ": too few values (list " +
+                                        QuoteForMessage(property.name) +
                                         " has " + std::to_string(j) + " of its " +
                                         std::to_string(count) + ")");
             }

@@ -267,7 +267,8 @@ Result<BeamPattern> ReadPatternCsv(const std::string& path) {
         int n = 0;
         if (!ParseInt(rest, &n) || !BeamsPerSideProblem(n).empty()) {
           return Status::ParseError(where(line_no) + "beams_per_side must be an odd integer in [3, " +
-                                    std::to_string(kMaxBeamsPerSide) + "], got " + QuoteForMessage(rest, 40));
+                                    std::to_string(kMaxBeamsPerSide) + "], got " +
+                                    QuoteForMessage(rest, 40));
         }
         beams_per_side = n;
         beams_per_side_line = line_no;
@@ -283,7 +284,8 @@ Result<BeamPattern> ReadPatternCsv(const std::string& path) {
                                               : nullptr;
         if (target == nullptr) continue;
         if (*target >= 0) {
-          return Status::ParseError(where(line_no) + "column " + QuoteForMessage(fields[k], 40) + " appears twice");
+          return Status::ParseError(where(line_no) + "column " + QuoteForMessage(fields[k], 40) +
+                                    " appears twice");
         }
         *target = static_cast<int>(k);
       }
@@ -326,11 +328,13 @@ Result<BeamPattern> ReadPatternCsv(const std::string& path) {
                                 QuoteForMessage(fields[col_el], 40));
     }
     if (std::abs(b.az_rad) > kPi) {
-      return Status::ParseError(where(line_no) + "field 'az_rad': " + SafeForMessage(fields[col_az], 40) +
+      return Status::ParseError(where(line_no) + "field 'az_rad': " +
+                                SafeForMessage(fields[col_az], 40) +
                                 " is outside [-pi, pi]");
     }
     if (std::abs(b.el_rad) >= 0.5 * kPi) {
-      return Status::ParseError(where(line_no) + "field 'el_rad': " + SafeForMessage(fields[col_el], 40) +
+      return Status::ParseError(where(line_no) + "field 'el_rad': " +
+                                SafeForMessage(fields[col_el], 40) +
                                 " is outside (-pi/2, pi/2)");
     }
     const auto [it, inserted] = line_of_id.emplace(b.id, line_no);

@@ -3,9 +3,9 @@
 // would. Every run must end with an exit code of the documented set
 // (docs/cli.md: 0, 3 bad input, 4 no solution; never 1, a signal or a
 // hang), and on failure with ONE line on stderr starting "<tool>: " (control
-// characters escaped), nothing on stdout and no output file (nor a
-// temporary one) left. A few dozen runs per case here; OPL_FUZZ_ITERATIONS
-// raises them (tests/fuzz/run_long.sh).
+// characters escaped; with exit 3, naming the input file), nothing on stdout
+// and no output file (nor a temporary one) left. A few dozen runs per case
+// here; OPL_FUZZ_ITERATIONS raises them (tests/fuzz/run_long.sh).
 #include <sys/wait.h>
 
 #include <algorithm>
@@ -129,6 +129,12 @@ class CliFuzz : public ::testing::Test {
                    return static_cast<unsigned char>(c) < 0x20 || c == 0x7f;
                  })) {
         fail("stderr holds a control character");
+      } else if (r.exit_code == 3 && last.find(work_.path() + "/") == std::string::npos &&
+                 last.find(std::filesystem::path(input_name).filename().string() + ":") ==
+                     std::string::npos) {
+        // Bad input names the file (docs/cli.md): its path (every input is in
+        // work_), or a shot by its name in the scene ("cam0_A.png: ...").
+        fail("exit 3 without naming an input file");
       } else if (!r.out.empty()) {
         fail("stdout is not empty after a failure");
       } else if (work_.Entries() != before) {

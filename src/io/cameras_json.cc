@@ -8,6 +8,7 @@
 
 #include "io/json_reader.h"
 #include "io/scene_camera_json.h"
+#include "opl/core/message_text.h"
 #include "opl/io/atomic_file.h"
 #include "opl/io/scene_json.h"
 
@@ -47,7 +48,8 @@ Result<std::vector<SceneCamera>> ParseCamerasJson(const std::string& text, const
     OPL_RETURN_IF_ERROR(json_internal::ParseSceneCamera(r, (*v)[k], path, &camera));
     if (camera.name.empty()) return r.Error(JsonReader::Join(path, "name"), "must not be empty");
     if (!names.insert(camera.name).second) {
-      return r.Error(JsonReader::Join(path, "name"), "duplicate camera name '" + camera.name + "'");
+      return r.Error(JsonReader::Join(path, "name"),
+                     "duplicate camera name " + QuoteForMessage(camera.name));
     }
     cameras.push_back(std::move(camera));
   }

@@ -212,7 +212,7 @@ Result<CsvTable> ParseCsv(const std::string& text, const std::string& name) {
                                 " has no name");
     }
     if (!seen.insert(Lower(column)).second) {
-      return Status::ParseError(where + "duplicate column '" + column + "'");
+      return Status::ParseError(where + "duplicate column " + QuoteForMessage(column));
     }
   }
   for (size_t r = 1; r < records.size(); ++r) {

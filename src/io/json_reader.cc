@@ -98,6 +98,26 @@ std::string StripNlohmann(const std::string& what) {
 
 }  // namespace
 
+std::string JsonErrorForMessage(const std::string& what) {
+  std::string s = StripNlohmann(what);
+  const std::string last_read = "last read: '";
+  const size_t start = s.find(last_read);
+  if (start != std::string::npos) {
+    const size_t from = start + last_read.size();
+    size_t end = s.find("'; expected", from);
+    if (end == std::string::npos) end = s.rfind('\'');
+    if (end != std::string::npos && end >= from) {
+      s = s.substr(0, from) + SafeForMessage(s.substr(from, end - from), 40) + s.substr(end);
+    }
+  }
+  return SafeForMessage(s, 300);
+}
+
+std::string WithSafePathPrefix(const std::string& message, const std::string& path) {
+  if (message.compare(0, path.size(), path) != 0) return message;
+  return SafeForMessage(path) + message.substr(path.size());
+}
+
 Status CheckJsonDepth(const std::string& text, const std::string& name) {
   int depth = 0;
   bool in_string = false;
@@ -139,10 +159,10 @@ Result<json> JsonReader::ParseText(const std::string& text) const {
   } catch (const json::parse_error& e) {
     const auto [line, column] = LineColumn(text, e.byte > 0 ? e.byte - 1 : 0);
     return Status::ParseError(name_ + ":" + std::to_string(line) + ":" + std::to_string(column) +
-                              ": invalid JSON: " + StripNlohmann(e.what()));
+                              ": invalid JSON: " + JsonErrorForMessage(e.what()));
   } catch (const json::exception& e) {
     // e.g. out_of_range.406 "number overflow parsing '1e999'": locate the literal.
-    const std::string what = StripNlohmann(e.what());
+    const std::string what = JsonErrorForMessage(e.what());
     std::string where = name_;
     const size_t q = what.find('\'');
     const size_t q2 = q == std::string::npos ? q : what.find('\'', q + 1);
@@ -172,9 +192,9 @@ Status JsonReader::Error(const std::string& path, const std::string& what) const
 }
 
 std::string JsonReader::Describe(const json& v) {
-  std::string d = v.dump();
-  if (d.size() > 40) d = d.substr(0, 37) + "...";
-  return d;
+  // Escaped: nlohmann escapes control characters below 0x20 in strings, not DEL.
+  const std::string d = v.dump();
+  return d.size() > 40 ? SafeForMessage(d, 37) : SafeForMessage(d, 40);
 }
 
 Status JsonReader::CheckObject(const json& v, const std::string& path) const {

@@ -30,6 +30,19 @@ constexpr int kMaxJsonDepth = 64;
 // run before parsing (the parser then reports any other syntax error).
 Status CheckJsonDepth(const std::string& text, const std::string& name);
 
+// nlohmann's exception text made fit for a one-line message (issue 19 item
+// 7): the "[json.exception...] parse error at line L, column C: " head
+// dropped, the token after "last read: " cut at 40 bytes (it may be a whole
+// 1 MB line), control characters escaped (nlohmann escapes < 0x20 but not
+// DEL) and the whole cut at 300 bytes.
+std::string JsonErrorForMessage(const std::string& what);
+
+// `message` (of a reader given `path`, a path taken from a JSON file, e.g. a
+// scene's module or a design's pattern_file) with its leading `path` escaped
+// and cut like any other echoed text (SafeForMessage): the path is the
+// file's content, and may hold control characters or be 80 KB long.
+std::string WithSafePathPrefix(const std::string& message, const std::string& path);
+
 class JsonReader {
  public:
   using json = nlohmann::json;

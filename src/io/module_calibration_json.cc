@@ -11,6 +11,7 @@
 #include "io/csv.h"
 #include "io/json_reader.h"
 #include "opl/core/format.h"
+#include "opl/core/message_text.h"
 #include "opl/geometry/rotation.h"
 #include "opl/io/atomic_file.h"
 #include "opl/model/beam_pattern.h"
@@ -355,17 +356,13 @@ Result<ModuleCalibration> ParseModuleCalibrationJson(const std::string& text,
         ++column;
       }
     }
-    std::string what = e.what();
-    const size_t colon = what.find(": ");
-    if (colon != std::string::npos) what = what.substr(colon + 2);
     return Status::ParseError(name + ":" + std::to_string(line) + ":" + std::to_string(column) +
-                              ": JSON syntax error: " + what);
+                              ": JSON syntax error: " +
+                              json_internal::JsonErrorForMessage(e.what()));
   } catch (const json::exception& e) {
     // e.g. out_of_range.406 "number overflow parsing '1e999'" (no position).
-    std::string what = e.what();
-    const size_t bracket = what.find("] ");
-    if (bracket != std::string::npos) what = what.substr(bracket + 2);
-    return Status::ParseError(name + ": JSON error: " + what);
+    return Status::ParseError(name + ": JSON error: " +
+                              json_internal::JsonErrorForMessage(e.what()));
   }
   const Fields f(name);
   if (!doc.is_object()) {
@@ -375,16 +372,17 @@ Result<ModuleCalibration> ParseModuleCalibrationJson(const std::string& text,
   OPL_ASSIGN_OR_RETURN(format_json, f.Member(doc, "", "format"));
   if (!format_json->is_string() || format_json->get<std::string>() != kFormat) {
     return f.Error("format",
-                   std::string("expected \"") + kFormat + "\", got " + format_json->dump());
+                   std::string("expected \"") + kFormat + "\", got " +
+                       SafeForMessage(format_json->dump(), 40));
   }
   OPL_ASSIGN_OR_RETURN(version_json, f.Member(doc, "", "version"));
   if (!version_json->is_number_integer() || version_json->get<int64_t>() != kVersion) {
-    return f.Error("version", "unsupported version " + version_json->dump() +
+    return f.Error("version", "unsupported version " + SafeForMessage(version_json->dump(), 40) +
                                   " (this build reads " + std::to_string(kVersion) + ")");
   }
   OPL_ASSIGN_OR_RETURN(units_json, f.Member(doc, "", "units"));
   if (!units_json->is_string() || units_json->get<std::string>() != "mm") {
-    return f.Error("units", "expected \"mm\", got " + units_json->dump());
+    return f.Error("units", "expected \"mm\", got " + SafeForMessage(units_json->dump(), 40));
   }
 
   ModuleCalibration cal;

@@ -181,9 +181,11 @@ class Reader : public json_internal::JsonReader {
       source->pattern_file = p.string();
       Result<BeamPattern> read = ReadPatternCsv(source->pattern_file);
       if (!read.ok()) {
-        // The pattern file's own code (IoError or ParseError), named by field.
-        return Status(read.status().code(),
-                      Error(path + ".pattern_file", read.status().message()).message());
+        // The pattern file's own code (IoError or ParseError), named by field;
+        // its messages start with the path, from this file.
+        const std::string message =
+            json_internal::WithSafePathPrefix(read.status().message(), source->pattern_file);
+        return Status(read.status().code(), Error(path + ".pattern_file", message).message());
       }
       if (n == nullptr) {
         source->beams_per_side = read->beams_per_side();

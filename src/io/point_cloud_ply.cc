@@ -160,10 +160,10 @@ Result<PlyHeader> ParsePlyHeader(std::string_view text, const std::string& name)
       const std::from_chars_result r =
           std::from_chars(w[2].data(), w[2].data() + w[2].size(), element.count);
       if (r.ec != std::errc() || r.ptr != w[2].data() + w[2].size() || element.count < 0) {
-        return error("element '" + element.name + "': not a count: " + Shown(w[2]));
+        return error("element " + QuoteForMessage(element.name) + ": not a count: " + Shown(w[2]));
       }
       if (!element_names.insert(element.name).second) {
-        return error("a second element '" + element.name + "'");
+        return error("a second element " + QuoteForMessage(element.name));
       }
       if (header.elements.empty()) header.first_element_offset = line_begin;
       header.elements.push_back(std::move(element));
@@ -181,7 +181,8 @@ Result<PlyHeader> ParsePlyHeader(std::string_view text, const std::string& name)
           return error("unknown type " + Shown(w[2]));
         }
         if (!IsIntegerType(property.count_type)) {
-          return error("the count of list '" + std::string(w[4]) + "' must be an integer type, got " +
+          return error("the count of list " + QuoteForMessage(std::string(w[4])) +
+                       " must be an integer type, got " +
                        Shown(w[2]));
         }
         if (!ParseScalarType(w[3], &property.type)) return error("unknown type " + Shown(w[3]));
@@ -192,7 +193,8 @@ Result<PlyHeader> ParsePlyHeader(std::string_view text, const std::string& name)
         property.name = std::string(w[2]);
       }
       if (!property_names.insert(property.name).second) {
-        return error("a second property '" + property.name + "' in element '" + element.name + "'");
+        return error("a second property " + QuoteForMessage(property.name) + " in element " +
+                     QuoteForMessage(element.name));
       }
       element.properties.push_back(std::move(property));
     } else if (key == "end_header") {
@@ -383,8 +385,9 @@ class PlyScaler {
   }
 
   std::string RecordWhere(const PlyElement& element, int64_t index, int64_t offset) const {
-    return in_.path() + ": byte " + std::to_string(offset) + ": " + element.name + " " +
-           std::to_string(index) + " of " + std::to_string(element.count);
+    return in_.path() + ": byte " + std::to_string(offset) + ": " +
+           SafeForMessage(element.name, 40) + " " + std::to_string(index) + " of " +
+           std::to_string(element.count);
   }
   Status Truncated(const PlyElement& element, int64_t index, int64_t offset) const {
     return Status::ParseError(RecordWhere(element, index, offset) +
@@ -433,7 +436,8 @@ class PlyScaler {
     }
     if (record == 0) return Status::Ok();  // no properties: no bytes
     if (record > static_cast<int64_t>(in_.capacity())) {
-      return Status::ParseError(in_.path() + ": element '" + element.name + "': records of " +
+      return Status::ParseError(in_.path() + ": element " + QuoteForMessage(element.name) +
+                                ": records of " +
                                 std::to_string(record) + " bytes are larger than the " +
                                 std::to_string(in_.capacity()) + "-byte buffer");
     }
@@ -481,7 +485,8 @@ class PlyScaler {
       const int64_t count = ReadInteger(p + at, property.count_type, swap_);
       if (count < 0) {
         return Status::ParseError(RecordWhere(element, index, in_.offset() + (p - in_.data())) +
-                                  ": list '" + property.name + "' has a negative count " +
+                                  ": list " + QuoteForMessage(property.name) +
+                                  " has a negative count " +
                                   std::to_string(count));
       }
       at += count_bytes + static_cast<size_t>(count) * static_cast<size_t>(PlyScalarBytes(property.type));
@@ -543,12 +548,12 @@ class PlyScaler {
       Result<bool> more = NextLine(in_, &pos_, line_number_, &line);
       if (!more.ok()) return more.status();
       auto where = [&] {  // only on errors: no allocation per record
-        return in_.path() + ":" + std::to_string(line_number_) + ": " + element.name + " " +
-               std::to_string(index);
+        return in_.path() + ":" + std::to_string(line_number_) + ": " +
+               SafeForMessage(element.name, 40) + " " + std::to_string(index);
       };
       if (!*more) {
         return Status::ParseError(in_.path() + ":" + std::to_string(line_number_) +
-                                  ": the file ends at " + element.name + " " +
+                                  ": the file ends at " + SafeForMessage(element.name, 40) + " " +
                                   std::to_string(index) + " of " + std::to_string(element.count) +
                                   " (truncated, or wrong counts in the header)");
       }
@@ -568,20 +573,22 @@ class PlyScaler {
         const PlyProperty& property = element.properties[i];
         const char *b, *te;
         if (!next_token(&b, &te)) {
-          return Status::ParseError(where() + ": too few values (no value for property '" +
-                                    property.name + "')");
+          return Status::ParseError(where() + ": too few values (no value for property " +
+                                    QuoteForMessage(property.name) + ")");
         }
         if (property.is_list) {
           int64_t count = -1;
           const std::from_chars_result r = std::from_chars(b, te, count);
           if (r.ec != std::errc() || r.ptr != te || count < 0) {
-            return Status::ParseError(where() + ": list '" + property.name + "': not a count: " +
+            return Status::ParseError(where() + ": list " + QuoteForMessage(property.name) +
+                                      ": not a count: " +
                                       Shown(std::string_view(b, static_cast<size_t>(te - b))));
           }
           for (int64_t j = 0; j < count; ++j) {
             if (!next_token(&b, &te)) {
-              return Status::ParseError(where() + ": too few values (list '" + property.name +
-                                        "' has " + std::to_string(j) + " of its " +
+              return Status::ParseError(where() + ": too few values (list " +
+                                        QuoteForMessage(property.name) +
+                                        " has " + std::to_string(j) + " of its " +
                                         std::to_string(count) + ")");
             }
           }

@@ -7,6 +7,7 @@
 #include <unordered_set>
 
 #include "io/csv.h"
+#include "opl/core/message_text.h"
 #include "io/point_file_stream.h"
 
 namespace opl {
@@ -220,7 +221,7 @@ class CsvScaler {
         return Error(line_, "header column " + std::to_string(i + 1) + " has no name");
       }
       if (!seen.insert(csv_internal::Lower(names.back())).second) {
-        return Error(line_, "duplicate column '" + names.back() + "'");
+        return Error(line_, "duplicate column " + QuoteForMessage(names.back()));
       }
     }
     const char* const kAxis[3] = {"x", "y", "z"};

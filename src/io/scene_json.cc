@@ -287,8 +287,10 @@ class SceneReader : public json_internal::JsonReader {
       if (p.is_relative() && !base_dir_.empty()) p = std::filesystem::path(base_dir_) / p;
       Result<ModuleDesign> design = ReadModuleDesignJson(p.string());
       if (!design.ok()) {
-        return Status(design.status().code(),
-                      Error("module", design.status().message()).message());
+        // The design reader's messages start with the path, from this file.
+        const std::string message =
+            json_internal::WithSafePathPrefix(design.status().message(), p.string());
+        return Status(design.status().code(), Error("module", message).message());
       }
       scene->module = std::move(*design);
       return Status::Ok();

@@ -6,6 +6,7 @@
 #include <string>
 
 #include "opl/core/format.h"
+#include "opl/core/message_text.h"
 #include "opl/geometry/rotation.h"
 
 namespace opl {
@@ -89,7 +90,7 @@ Status CheckLooks(const SpotLook& spots, const ImageLook& image) {
     return BadNumber("image.distractors", image.distractors, "must be in [0, 1000]");
   }
   if (image.format != "png" && image.format != "jpeg") {
-    return Bad("image.format", "'" + image.format + "': must be \"png\" or \"jpeg\"");
+    return Bad("image.format", QuoteForMessage(image.format, 40) + ": must be \"png\" or \"jpeg\"");
   }
   if (image.format == "jpeg" && image.bit_depth != 8) {
     return Bad("image.format", "\"jpeg\" needs \"bit_depth\": 8");
@@ -128,7 +129,7 @@ Status Scene::Validate() const {
   }
 
   if (tags.family != "tag36h11") {
-    return Bad("tags.family", "'" + tags.family + "': only 'tag36h11' is supported");
+    return Bad("tags.family", QuoteForMessage(tags.family, 40) + ": only 'tag36h11' is supported");
   }
   if (!(Finite(tags.size_mm) && tags.size_mm > 0.0)) {
     return BadNumber("tags.size_mm", tags.size_mm, "must be finite and > 0");
@@ -237,12 +238,12 @@ Status Scene::Validate() const {
     const std::string path = "shots[" + std::to_string(k) + "]";
     const SceneShot& s = shots[k];
     if (FindCamera(s.camera) == nullptr) {
-      return Bad(path + ".camera", "no camera named '" + s.camera + "'");
+      return Bad(path + ".camera", "no camera named " + QuoteForMessage(s.camera));
     }
     if (s.file.empty()) return Bad(path + ".file", "must not be empty");
     const auto [it, inserted] = file_index.emplace(s.file, k);
     if (!inserted) {
-      return Bad(path + ".file", "'" + s.file + "' is also the file of shots[" +
+      return Bad(path + ".file", QuoteForMessage(s.file) + " is also the file of shots[" +
                                      std::to_string(it->second) + "]");
     }
     std::set<std::string> lit;
@@ -260,8 +261,8 @@ Status Scene::Validate() const {
     if (!s.placement.empty() && placement_index.count(s.placement) == 0) {
       return Bad(path + ".placement",
                  module_placements.empty()
-                     ? "'" + s.placement + "': the scene lists no module_placements"
-                     : "no module placement named '" + s.placement + "'");
+                     ? QuoteForMessage(s.placement) + ": the scene lists no module_placements"
+                     : "no module placement named " + QuoteForMessage(s.placement));
     }
     if (s.placement.empty() && !module_placements.empty() && !s.lasers.empty()) {
       return Bad(path + ".placement",

@@ -1,6 +1,7 @@
 #include "opl/sim/pattern_models.h"
 
 #include "opl/core/format.h"
+#include "opl/core/message_text.h"
 
 #include <cerrno>
 #include <cmath>
@@ -266,7 +267,8 @@ Result<BeamPattern> ReadPatternCsv(const std::string& path) {
         int n = 0;
         if (!ParseInt(rest, &n) || !BeamsPerSideProblem(n).empty()) {
           return Status::ParseError(where(line_no) + "beams_per_side must be an odd integer in [3, " +
-                                    std::to_string(kMaxBeamsPerSide) + "], got '" + rest + "'");
+                                    std::to_string(kMaxBeamsPerSide) + "], got " +
+                                    QuoteForMessage(rest, 40));
         }
         beams_per_side = n;
         beams_per_side_line = line_no;
@@ -282,7 +284,8 @@ Result<BeamPattern> ReadPatternCsv(const std::string& path) {
                                               : nullptr;
         if (target == nullptr) continue;
         if (*target >= 0) {
-          return Status::ParseError(where(line_no) + "column '" + fields[k] + "' appears twice");
+          return Status::ParseError(where(line_no) + "column " + QuoteForMessage(fields[k], 40) +
+                                    " appears twice");
         }
         *target = static_cast<int>(k);
       }
@@ -308,8 +311,8 @@ Result<BeamPattern> ReadPatternCsv(const std::string& path) {
     }
     Beam b;
     if (!ParseInt(fields[col_id], &b.id)) {
-      return Status::ParseError(where(line_no) + "field 'id': not an integer: '" +
-                                fields[col_id] + "'");
+      return Status::ParseError(where(line_no) + "field 'id': not an integer: " +
+                                QuoteForMessage(fields[col_id], 40));
     }
     const int n2 = beams_per_side * beams_per_side;
     if (b.id < 1 || b.id > n2) {
@@ -317,19 +320,21 @@ Result<BeamPattern> ReadPatternCsv(const std::string& path) {
                                 " is outside 1.." + std::to_string(n2));
     }
     if (!ParseDouble(fields[col_az], &b.az_rad)) {
-      return Status::ParseError(where(line_no) + "field 'az_rad': not a finite number: '" +
-                                fields[col_az] + "'");
+      return Status::ParseError(where(line_no) + "field 'az_rad': not a finite number: " +
+                                QuoteForMessage(fields[col_az], 40));
     }
     if (!ParseDouble(fields[col_el], &b.el_rad)) {
-      return Status::ParseError(where(line_no) + "field 'el_rad': not a finite number: '" +
-                                fields[col_el] + "'");
+      return Status::ParseError(where(line_no) + "field 'el_rad': not a finite number: " +
+                                QuoteForMessage(fields[col_el], 40));
     }
     if (std::abs(b.az_rad) > kPi) {
-      return Status::ParseError(where(line_no) + "field 'az_rad': " + fields[col_az] +
+      return Status::ParseError(where(line_no) + "field 'az_rad': " +
+                                SafeForMessage(fields[col_az], 40) +
                                 " is outside [-pi, pi]");
     }
     if (std::abs(b.el_rad) >= 0.5 * kPi) {
-      return Status::ParseError(where(line_no) + "field 'el_rad': " + fields[col_el] +
+      return Status::ParseError(where(line_no) + "field 'el_rad': " +
+                                SafeForMessage(fields[col_el], 40) +
                                 " is outside (-pi/2, pi/2)");
     }
     const auto [it, inserted] = line_of_id.emplace(b.id, line_no);

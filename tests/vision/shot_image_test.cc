@@ -2,6 +2,7 @@
 // orientation says, tags in luma, spots in the laser's channel.
 #include "opl/vision/shot_image.h"
 
+#include <chrono>
 #include <cmath>
 #include <random>
 #include <string>
@@ -133,6 +134,29 @@ TEST(ShotImage, AncillaryPngChunksPrintNoWarning) {
   cv::Mat diff;
   cv::absdiff(shot->for_tags, image, diff);
   EXPECT_EQ(cv::countNonZero(diff), 0);
+}
+
+// Found by tests/fuzz: a 200-byte PNG whose tEXt chunk claims 0x7fffffff
+// bytes made libpng allocate 2 GB (1.5 s) before finding the file short.
+TEST(ShotImage, PngChunksLongerThanTheFileAreRefusedBeforeDecoding) {
+  cv::Mat image(16, 24, CV_8UC1, cv::Scalar(90));
+  std::vector<uchar> png;
+  ASSERT_TRUE(cv::imencode(".png", image, png));
+  std::string bytes(png.begin(), png.end());
+  bytes.insert(33, std::string("\x7f\xff\xff\xfftEXtComment", 15));
+  testing_support::TempDir dir;
+  const std::string path = dir.Write("long_chunk.png", bytes);
+  const auto start = std::chrono::steady_clock::now();
+  ::testing::internal::CaptureStderr();
+  Result<ShotImage> shot = ReadShotImage(path, SpotChannel::kRed);
+  EXPECT_EQ(::testing::internal::GetCapturedStderr(), "");
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 0.5);
+  ASSERT_FALSE(shot.ok());
+  EXPECT_EQ(shot.status().code(), StatusCode::kIoError);
+  EXPECT_EQ(shot.status().message(),
+            path + ": cannot decode the image: PNG chunk 'tEXt' at byte 33 claims 2147483647 "
+                   "bytes, more than the " + std::to_string(bytes.size() - 45) +
+                   " left in the file");
 }
 
 TEST(ShotImage, Errors) {

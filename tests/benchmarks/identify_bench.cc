@@ -51,7 +51,9 @@ namespace {
 // missing. The spot noise and the calibration's departure from the design
 // shrink with the spacing (x 10 / (n - 1)), so that every n is the 11 x 11
 // bench scene made denser, identifiable alike.
-// state.range(0) = n: 71 (~1.1e4 points), 121 (~3.2e4), 201 (~8.9e4).
+// state.range(0) = n: 71 (1.05e4 points), 121 (3.0e4). n = 201 (8.4e4
+// points) finds no source yet and takes minutes: not benchmarked. Not in
+// the ctest smoke run (seconds each).
 void BM_IdentifyLargeUnassignedSet(benchmark::State& state) {
   opl::test::IdentifySceneOptions o;
   o.sources = 2;
@@ -77,6 +79,6 @@ void BM_IdentifyLargeUnassignedSet(benchmark::State& state) {
   state.counters["real"] = scene.real;
   state.counters["assigned"] = assigned;
 }
-BENCHMARK(BM_IdentifyLargeUnassignedSet)->Arg(71)->Arg(121)->Arg(201)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(1);
+BENCHMARK(BM_IdentifyLargeUnassignedSet)->Arg(71)->Arg(121)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(1);
 
 }  // namespace

@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <cstdlib>
 #include <fstream>
 #include <limits>
 #include <map>
@@ -551,6 +552,25 @@ TEST(GridHeatmapTest, UnwritablePathIsAnIoError) {
   EXPECT_EQ(s.code(), StatusCode::kIoError);
   EXPECT_NE(s.message().find("no/such/x.png"), std::string::npos) << s.message();
   EXPECT_TRUE(dir.Entries().empty());
+}
+
+// Samples for looking at (only with OPL_GRID_HEATMAP_SAMPLES=<dir>): a 3 x 3
+// map with a no-data beam and the noise-level line, and an 11 x 11 map on a
+// fixed scale, in all three formats.
+TEST(GridHeatmapSamples, WriteWhenAsked) {
+  const char* dir = std::getenv("OPL_GRID_HEATMAP_SAMPLES");
+  if (dir == nullptr) GTEST_SKIP() << "set OPL_GRID_HEATMAP_SAMPLES=<dir> to write samples";
+  GridHeatmap noise = MakeHeatmap(3, {0.011, 0.012, 0.009, kNaN, 0.015, 0.01, 0.012, 0.013, 0.014});
+  noise.noise_level = 0.02;
+  noise.value_unit = "mm";
+  GridHeatmap fixed = MakeHeatmap(11, RadialValues(11, 0.006));
+  fixed.values[16] = kNaN;
+  fixed.scale_max = 0.04;
+  fixed.scale_note = "one scale for sources A, B";
+  for (const char* ext : {"png", "svg", "pdf"}) {
+    ASSERT_TRUE(WriteGridHeatmap(noise, std::string(dir) + "/noise_3x3." + ext).ok());
+    ASSERT_TRUE(WriteGridHeatmap(fixed, std::string(dir) + "/fixed_11x11." + ext).ok());
+  }
 }
 
 }  // namespace

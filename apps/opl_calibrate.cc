@@ -4,6 +4,7 @@
 // parses options, reads files, writes outputs atomically and maps errors to
 // exit codes.
 #include <cmath>
+#include <limits>
 #include <filesystem>
 #include <iostream>
 #include <string>
@@ -43,6 +44,7 @@ struct Args {
   std::string out_path;
   std::string report_dir;
   double heatmap_max_mm = 0.0;  // 0: one scale for all sources, their largest value
+  double heatmap_noise_mm = std::numeric_limits<double>::quiet_NaN();  // NaN: none
   std::string heatmap_format = "png";
   int beams_per_side = 0;
   bool allow_extra_columns = false;
@@ -148,6 +150,8 @@ int WriteOutputs(const Args& args, const opl::ModuleCalibrationResult& result,
     for (size_t i = 0; i < heatmaps.size(); ++i) {
       heatmaps[i].scale_max = scale_max;
       heatmaps[i].scale_note = scale_note;
+      heatmaps[i].noise_level = args.heatmap_noise_mm;
+      heatmaps[i].value_unit = "mm";
       Result<std::vector<unsigned char>> bytes = RenderGridHeatmap(heatmaps[i], *format, metadata);
       if (!bytes.ok()) return cli::Fail(kTool, bytes.status().message(), cli::kExitInternalError);
       images.emplace_back("heatmap_" + result.sources[i].calibration.name + "." +
@@ -287,13 +291,18 @@ int Run(int argc, char** argv) {
       ->required()
       ->type_name("FILE");
   app.add_option("--report", args.report_dir,
-                 "Folder for beams.csv, samples.csv and heatmap_<source>.png (created if "
-                 "missing; files written atomically)")
+                 "Folder for beams.csv, samples.csv and heatmap_<source>.png (or .svg, .pdf;\n"
+                 "created if missing; files written atomically)")
       ->type_name("DIR");
   app.add_option("--heatmap-max-mm", args.heatmap_max_mm,
                  "With --report: top of the heat maps' colour scale, mm (> 0), e.g. to compare\n"
                  "runs; larger distances get the top colour and a triangle on the bar. Default:\n"
                  "the largest mean point-to-ray distance of all sources (one scale per run)")
+      ->type_name("MM");
+  app.add_option("--heatmap-noise-mm", args.heatmap_noise_mm,
+                 "With --report: the mean point-to-ray distance noise alone gives, mm (>= 0;\n"
+                 "about 1.25 x the spots' standard deviation across the beam). A map whose\n"
+                 "beams are all at or below it says 'All beams at the noise level'")
       ->type_name("MM");
   app.add_option("--heatmap-format", args.heatmap_format,
                  "With --report: png (default), svg or pdf (vector, for print); the PDF\n"
@@ -340,6 +349,9 @@ int Run(int argc, char** argv) {
       "  opl_simulate slices --design examples/prototype_design.json --depths 750:65:1335 \\\n"
       "      --out slices.csv\n"
       "  opl_calibrate --spots slices.csv --out module.json --report report/\n"
+      "  # vector heat maps for print, on the scale of an earlier run, noise marked:\n"
+      "  opl_calibrate --spots slices.csv --out module.json --report report/ \\\n"
+      "      --heatmap-format pdf --heatmap-max-mm 0.2 --heatmap-noise-mm 0.1\n"
       "  opl_calibrate --spots session.txt --columns id,x,y,z,slice --design design.json \\\n"
       "      --out module.json\n"
       "  opl_calibrate --spots session.csv --targets targets.csv --artifact T1,T2 \\\n"
@@ -371,6 +383,12 @@ int Run(int argc, char** argv) {
       !(std::isfinite(args.heatmap_max_mm) && args.heatmap_max_mm > 0)) {
     return cli::Fail(kTool, "--heatmap-max-mm must be finite and > 0, got " +
                                 FormatNumber(args.heatmap_max_mm),
+                     cli::kExitUsage);
+  }
+  if (app.count("--heatmap-noise-mm") > 0 &&
+      !(std::isfinite(args.heatmap_noise_mm) && args.heatmap_noise_mm >= 0)) {
+    return cli::Fail(kTool, "--heatmap-noise-mm must be finite and >= 0, got " +
+                                FormatNumber(args.heatmap_noise_mm),
                      cli::kExitUsage);
   }
   if (args.image_run.verbose) cli::ShowSolverLogging();

@@ -214,6 +214,14 @@ TEST_F(CalibrateCli, HeatMapsShareOneColourScale) {
   EXPECT_GT(std::max(top_a, top_b), 2500) << top_a << " " << top_b;
   EXPECT_LT(std::min(top_a, top_b), 300) << top_a << " " << top_b;
 
+  // The noise-level line (bold, RGB 0,110,70): only when every beam is at or
+  // below --heatmap-noise-mm.
+  EXPECT_EQ(CountColour(dir_.File("report/heatmap_A.png"), 0, 110, 70), 0);
+  ASSERT_EQ(run(" --heatmap-noise-mm 10").exit_code, 0);
+  EXPECT_GT(CountColour(dir_.File("report/heatmap_A.png"), 0, 110, 70), 100);
+  ASSERT_EQ(run(" --heatmap-noise-mm 0.001").exit_code, 0);
+  EXPECT_EQ(CountColour(dir_.File("report/heatmap_A.png"), 0, 110, 70), 0);
+
   // A fixed scale far above the data: every cell near viridis(0) = 68,1,84.
   ASSERT_EQ(run(" --heatmap-max-mm 1000").exit_code, 0);
   EXPECT_GT(CountColour(dir_.File("report/heatmap_A.png"), 68, 1, 84), 121 * 3000);
@@ -238,6 +246,7 @@ TEST_F(CalibrateCli, HeatMapsShareOneColourScale) {
   std::filesystem::remove(dir_.File("module.json"));
   ExpectRefused(run(" --heatmap-max-mm 0"), 2, "--heatmap-max-mm must be finite and > 0, got 0");
   ExpectRefused(run(" --heatmap-format jpg"), 2, "--heatmap-format");
+  ExpectRefused(run(" --heatmap-noise-mm -1"), 2, "--heatmap-noise-mm must be finite and >= 0, got -1");
 }
 
 TEST_F(CalibrateCli, BadSessionsAreRefusedAndNothingIsWritten) {

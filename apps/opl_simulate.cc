@@ -5,7 +5,8 @@
 //                      [--tilt-deg A] [--curvature C] [the options of spots]
 //   opl_simulate calibration --design D.json --out cal.json
 //   opl_simulate mc --design D.json --iterations N [--seed S] [--threads T]
-//                   [--noise-scale F] [--weighting W] [--json]
+//                   [--noise-scale F] [--weighting W] [--json [--samples]]
+//                   [--plot FIG.png]
 //                   [--calibration [--depths LIST] [--tilt-deg A] [--curvature C]]
 //   opl_simulate sweep --design D.json --param P --values LIST --out sweep.csv
 //                   [--plot sweep.png] [--iterations N] [--seed S] [--threads T]
@@ -13,8 +14,9 @@
 //   opl_simulate images --scene S.json --out DIR [--shots LIST] [--threads T]
 // The work is done by opl::SimulateSpots, opl::MakeCalibrationScreens,
 // opl::SimulateSlices, opl::ExactCalibration (include/opl/sim/) and
-// opl::RunMeasurementMonteCarlo, opl::RunDesignSweep (include/opl/uncertainty/)
-// and opl::RenderLinePlotPng (include/opl/report/) and opl::SceneRenderer
+// opl::RunMeasurementMonteCarlo, opl::MonteCarloFigure, opl::RunDesignSweep
+// (include/opl/uncertainty/) and opl::RenderLinePlotPng (include/opl/report/)
+// and opl::SceneRenderer
 // (include/opl/lab/render_scene.h); this file
 // parses options, reads the design, writes the output atomically and maps
 // errors to exit codes.
@@ -49,6 +51,7 @@
 #include "opl/uncertainty/calibration_monte_carlo.h"
 #include "opl/uncertainty/design_sweep.h"
 #include "opl/uncertainty/monte_carlo.h"
+#include "opl/uncertainty/monte_carlo_figure.h"
 
 namespace {
 
@@ -70,10 +73,12 @@ struct Args {
   bool json = false;
   std::string weighting = "efficient";
   bool calibration = false;  // mc of a calibration session
+  bool samples = false;      // mc --json: every iteration's values too
+  // mc and sweep
+  std::string plot_path;
   // sweep only
   std::string param;
   std::string values;
-  std::string plot_path;
   bool log_x = false;
   bool log_y = false;
   // images only
@@ -219,22 +224,32 @@ int CalibrationCommand(const Args& args) {
   return cli::kExitOk;
 }
 
-// Runs a Monte Carlo (`run` on `options`) with a progress bar on a terminal,
-// warns on stderr about failed iterations and prints the report.
-template <class Options, class Run>
-int RunAndPrint(const Args& args, Options options, const Run& run) {
+// Runs a Monte Carlo (`run` on `options`) with a progress bar on a terminal
+// and warns on stderr about failed iterations. Returns the exit code when the
+// run failed.
+template <class Options, class Run, class Report>
+std::optional<int> RunWithProgress(Options options, const Run& run, Report* report) {
   using namespace opl;
   cli::ProgressBar bar("mc", cli::StderrIsTerminal());
   options.progress = [&bar](int done, int total) { bar.Update(done, total); };
-  auto report = run(options);
+  auto result = run(options);
   bar.Finish();
-  if (!report.ok()) return cli::FailInput(kTool, report.status());
+  if (!result.ok()) return cli::FailInput(kTool, result.status());
+  *report = std::move(*result);
   if (report->failed > 0) {
     std::fprintf(stderr, "%s: warning: %d of %d iterations failed and were left out; %s\n",
                  kTool, report->failed, report->iterations, report->first_failure.c_str());
   }
-  return args.json ? cli::PrintJsonToStdout(kTool, report->ToJson(), args.provenance)
-                   : cli::PrintToStdout(kTool, report->ToText());
+  return std::nullopt;
+}
+
+// --plot must name a PNG (its provenance goes into PNG text chunks).
+std::optional<int> CheckPlotPath(const std::string& path) {
+  if (!path.empty() && std::filesystem::path(path).extension() != ".png") {
+    return opl::cli::Fail(kTool, "--plot '" + path + "': the name must end in .png",
+                          opl::cli::kExitUsage);
+  }
+  return std::nullopt;
 }
 
 int CalibrationMonteCarloCommand(const Args& args, const opl::ModuleDesign& design) {
@@ -256,19 +271,32 @@ int CalibrationMonteCarloCommand(const Args& args, const opl::ModuleDesign& desi
   if (Status st = options.Validate(); !st.ok()) {
     return cli::Fail(kTool, "invalid option: " + st.message(), cli::kExitBadInput);
   }
-  return RunAndPrint(args, options, [&design](const CalibrationMonteCarloOptions& o) {
-    return RunCalibrationMonteCarlo(design, o);
-  });
+  CalibrationMonteCarloReport report;
+  if (std::optional<int> code = RunWithProgress(
+          options,
+          [&design](const CalibrationMonteCarloOptions& o) {
+            return RunCalibrationMonteCarlo(design, o);
+          },
+          &report)) {
+    return *code;
+  }
+  return args.json ? cli::PrintJsonToStdout(kTool, report.ToJson(), args.provenance)
+                   : cli::PrintToStdout(kTool, report.ToText());
 }
 
 int MonteCarloCommand(const Args& args) {
   using namespace opl;
+  if (std::optional<int> code = CheckPlotPath(args.plot_path)) return *code;
   ModuleDesign design;
   SpotSimulationOptions unused;
   if (std::optional<int> code = PrepareSpotSimulation(args, &design, &unused)) return *code;
   if (args.calibration) {
     if (args.weighting != "efficient") {
       return cli::Fail(kTool, "--weighting applies to a measurement, not to --calibration",
+                       cli::kExitUsage);
+    }
+    if (!args.plot_path.empty() || args.samples) {
+      return cli::Fail(kTool, "--plot and --samples apply to a measurement, not to --calibration",
                        cli::kExitUsage);
     }
     return CalibrationMonteCarloCommand(args, design);
@@ -289,13 +317,35 @@ int MonteCarloCommand(const Args& args) {
   if (Status st = options.Validate(); !st.ok()) {
     return cli::Fail(kTool, "invalid option: --" + st.message(), cli::kExitBadInput);
   }
-  return RunAndPrint(args, options, [&design](const MonteCarloOptions& o) {
-    return RunMeasurementMonteCarlo(design, o);
-  });
+  MonteCarloReport report;
+  if (std::optional<int> code = RunWithProgress(
+          options,
+          [&design](const MonteCarloOptions& o) { return RunMeasurementMonteCarlo(design, o); },
+          &report)) {
+    return *code;
+  }
+  // The figure is the run's one file: rendered, then written atomically
+  // (io/output_set.h), before anything is printed; on any error nothing is
+  // written and nothing printed.
+  if (!args.plot_path.empty()) {
+    Result<std::vector<unsigned char>> png = RenderLinePlotPng(MonteCarloFigure(report));
+    if (!png.ok()) {
+      return cli::Fail(kTool, "plot: " + png.status().message(), cli::kExitInternalError);
+    }
+    OutputSet outputs(args.provenance);
+    if (Status st = outputs.Add(args.plot_path, std::string(png->begin(), png->end()));
+        !st.ok()) {
+      return cli::FailWrite(kTool, st);
+    }
+    if (Status st = outputs.Commit(); !st.ok()) return cli::FailWrite(kTool, st);
+  }
+  return args.json ? cli::PrintJsonToStdout(kTool, report.ToJson(args.samples), args.provenance)
+                   : cli::PrintToStdout(kTool, report.ToText());
 }
 
 int SweepCommand(const Args& args) {
   using namespace opl;
+  if (std::optional<int> code = CheckPlotPath(args.plot_path)) return *code;
   Result<SweepParameter> parameter = ParseSweepParameter(args.param);
   if (!parameter.ok()) return cli::Fail(kTool, "--param: " + parameter.status().message(), cli::kExitUsage);
   Result<std::vector<double>> values = ParseSweepValues(args.param, args.values);
@@ -356,8 +406,8 @@ int SweepCommand(const Args& args) {
   for (const DesignSweepPoint& p : sweep->points) {
     for (const MonteCarloLength& l : p.report.lengths) {
       const SampleSummary& s = l.photo_mm;
-      std::snprintf(line, sizeof(line), "%-16g %-7s %12.5f %12.5f %12.5f %7.3f %13.0f %6d\n",
-                    p.value, (l.from + "-" + l.to).c_str(), s.std_dev, s.first_order_std,
+      std::snprintf(line, sizeof(line), "%-16s %-7s %12.5f %12.5f %12.5f %7.3f %13.0f %6d\n",
+                    SweepValueText(*parameter, p.value).c_str(), (l.from + "-" + l.to).c_str(), s.std_dev, s.first_order_std,
                     s.cramer_rao_std, s.cramer_rao_std > 0 ? s.std_dev / s.cramer_rao_std : 0.0,
                     1e6 * s.std_dev / l.true_mm, p.report.failed);
       table += line;
@@ -686,7 +736,10 @@ int Run(int argc, char** argv) {
       "noise, docs/uncertainty.md), with the ratios MC/FO and MC/CRB. Coverage\n"
       "intervals are the probabilistically symmetric ones of JCGM 101 7.7.1 (the\n"
       "shortest, 7.7.2, is also in the JSON). Use at least a few thousand iterations\n"
-      "for a stable 95 % interval.\n"
+      "for a stable 95 % interval. --plot draws the histograms of L and s against the\n"
+      "first-order normal density with both 95 % intervals (the one to look at: is the\n"
+      "output normal, unbiased, as wide as predicted?); --json --samples adds every\n"
+      "iteration's values to the JSON.\n"
       "\n"
       "The run uses --threads cores (default: all); the result depends only on the design,\n"
       "--iterations and --seed, never on the thread count. A progress bar is drawn on\n"
@@ -732,13 +785,30 @@ int Run(int argc, char** argv) {
   mc->add_option("--curvature", args.curvature_per_mm,
                  "With --calibration: screen curvature, 1/mm (see slices)")
       ->capture_default_str();
-  mc->add_flag("--json", args.json,
-               "Write one JSON object (format opl.monte_carlo_report, docs/uncertainty.md)\n"
-               "instead of the text summary");
+  CLI::Option* mc_json =
+      mc->add_flag("--json", args.json,
+                   "Write one JSON object (format opl.monte_carlo_report, docs/uncertainty.md)\n"
+                   "instead of the text summary");
+  mc->add_flag("--samples", args.samples,
+               "With --json: the values of every successful iteration too (sample_iterations;\n"
+               "per length samples_mm, scale_factor.samples, per source origin_samples_mm and\n"
+               "rotation_samples_rad), in iteration order; about 200 bytes per iteration\n"
+               "with two sources")
+      ->needs(mc_json);
+  mc->add_option("--plot", args.plot_path,
+                 "PNG figure to write (atomically; written before anything is printed, and\n"
+                 "not at all on an error): per length L (the first three) and for s - 1\n"
+                 "(ppm) the histogram of the Monte Carlo values (Freedman-Diaconis bins,\n"
+                 "10 to 100), the first-order normal density scaled to counts, and the 95 %\n"
+                 "coverage intervals: the Monte Carlo's (JCGM 101 7.7.1) and first order\n"
+                 "+-1.96 u (dashed)")
+      ->type_name("FILE.png");
   const std::string mc_examples =
       "  opl_simulate mc --design examples/staggered_design.json --iterations 5000\n"
       "  opl_simulate mc --design examples/staggered_design.json --iterations 5000 --seed 7 \\\n"
       "      --threads 2 --json > mc.json\n"
+      "  opl_simulate mc --design examples/staggered_design.json --iterations 5000 \\\n"
+      "      --plot mc.png --json --samples > mc_samples.json\n"
       "  opl_simulate mc --design examples/prototype_design.json --iterations 2000 --noise-scale 2\n"
       "  opl_simulate mc --design examples/anisotropic_design.json --iterations 2000 \\\n"
       "      --weighting unweighted\n"
@@ -765,7 +835,8 @@ int Run(int argc, char** argv) {
       "  distance_mm     projection distance, mm (the surface moved along the viewing direction)\n"
       "  stagger_deg     layout of two sources: the baseline turned from across (0, side by\n"
       "                  side) towards the viewing direction (45 staggered, 90 in line)\n"
-      "  layout          stagger_deg with the values side_by_side (0) and staggered (45)");
+      "  layout          the designs of stagger_deg 0 and 45, named side_by_side and\n"
+      "                  staggered: categorical (plotted at 1, 2, ... as markers only)");
   sweep->add_option("--design", args.design_path, "Module design JSON: the base design")
       ->required()
       ->type_name("FILE");
@@ -775,7 +846,11 @@ int Run(int argc, char** argv) {
       ->required()
       ->type_name("LIST");
   sweep->add_option("--out", args.out_path, "Sweep CSV to write (atomically)")->required()->type_name("FILE");
-  sweep->add_option("--plot", args.plot_path, "PNG plot to write (atomically)")->type_name("FILE");
+  sweep->add_option("--plot", args.plot_path,
+                    "PNG plot to write (atomically, with the CSV or not at all): Monte Carlo\n"
+                    "markers with error bars, first order (solid line with markers), Cramer-Rao\n"
+                    "bound (dashed over it); layout: markers at 1, 2, ... named in the x label")
+      ->type_name("FILE.png");
   sweep->add_flag("--log-x", args.log_x, "Logarithmic parameter axis in the plot");
   sweep->add_flag("--log-y", args.log_y,
                   "Logarithmic uncertainty axes in the plot (a power law is a straight line)");

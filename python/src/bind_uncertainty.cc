@@ -69,7 +69,10 @@ void BindUncertainty(py::module_& m) {
       .def_readonly("scale_factor", &MR::scale_factor)
       .def_property_readonly("scale_samples", [](const MR& r) { return py::array_t<double>(py::cast(r.scale_samples)); })
       .def("to_text", &MR::ToText)
-      .def("to_json", &MR::ToJson);
+      .def_readonly("sample_iterations", &MR::sample_iterations,
+                    "The index of every successful iteration, in the order of every sample array.")
+      .def("to_json", &MR::ToJson, py::arg("include_samples") = false,
+           "The opl.monte_carlo_report JSON; include_samples adds every iteration's values.");
   m.def(
       "run_measurement_monte_carlo",
       [](const opl::ModuleDesign& d, const MO& o) {
@@ -86,7 +89,8 @@ void BindUncertainty(py::module_& m) {
       .value("BEAMS_PER_SIDE", opl::SweepParameter::kBeamsPerSide)
       .value("SEPARATION_MM", opl::SweepParameter::kSeparationMm)
       .value("DISTANCE_MM", opl::SweepParameter::kDistanceMm)
-      .value("STAGGER_DEG", opl::SweepParameter::kStaggerDeg);
+      .value("STAGGER_DEG", opl::SweepParameter::kStaggerDeg)
+      .value("LAYOUT", opl::SweepParameter::kLayout);
   m.def(
       "apply_sweep_value",
       [](const opl::ModuleDesign& d, opl::SweepParameter p, double v) { return Unwrap(opl::ApplySweepValue(d, p, v)); },

@@ -1,6 +1,8 @@
 """calibrate_module on simulated calibration sessions, and the Monte Carlo
 studies (measurement, calibration, design sweep) checked against their
 first-order predictions, numpy and the expected scaling laws."""
+import json
+
 import numpy as np
 import pytest
 
@@ -73,6 +75,11 @@ def test_measurement_monte_carlo(prototype_design):
     # the std about 4 %), and the true length lies in the 95 % interval.
     assert length.photo_mm.std_dev == pytest.approx(length.photo_mm.first_order_std, rel=0.15)
     assert length.photo_mm.symmetric.low < 55.0 < length.photo_mm.symmetric.high
+    # The JSON carries the samples only when asked for, exactly.
+    assert "sample_iterations" not in json.loads(report.to_json())
+    full = json.loads(report.to_json(include_samples=True))
+    assert full["sample_iterations"] == list(report.sample_iterations) == list(range(300))
+    assert full["lengths"][0]["samples_mm"] == list(samples)
 
 
 def test_design_sweep_is_linear_in_noise(prototype_design):

@@ -1,5 +1,6 @@
 #include "opl/uncertainty/design_sweep.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <utility>
@@ -14,53 +15,92 @@ namespace {
 
 constexpr double kDegToRad = kPi / 180.0;
 
+// The one table of the parameters: --param name, the quantity in words (for
+// titles) and its unit (empty: none; the axis label is "noun (unit)").
 struct ParameterInfo {
   SweepParameter parameter;
   const char* name;
-  const char* label;
+  const char* noun;
+  const char* unit;
 };
 
 constexpr ParameterInfo kParameters[] = {
-    {SweepParameter::kNoiseMm, "noise_mm", "spot noise sigma, largest axis (mm)"},
-    {SweepParameter::kFullAngleDeg, "full_angle_deg", "full fan angle (deg)"},
-    {SweepParameter::kBeamsPerSide, "beams_per_side", "beams per side n"},
-    {SweepParameter::kSeparationMm, "separation_mm", "separation of the origins (mm)"},
-    {SweepParameter::kDistanceMm, "distance_mm", "projection distance (mm)"},
-    {SweepParameter::kStaggerDeg, "stagger_deg",
-     "stagger of the baseline (deg; 0 side by side, 45 staggered)"},
+    {SweepParameter::kNoiseMm, "noise_mm", "spot noise sigma, largest axis", "mm"},
+    {SweepParameter::kFullAngleDeg, "full_angle_deg", "fan full angle", "deg"},
+    {SweepParameter::kBeamsPerSide, "beams_per_side", "beams per side n", ""},
+    {SweepParameter::kSeparationMm, "separation_mm", "separation of the origins", "mm"},
+    {SweepParameter::kDistanceMm, "distance_mm", "projection distance", "mm"},
+    {SweepParameter::kStaggerDeg, "stagger_deg", "stagger of the baseline",
+     "deg; 0 side by side, 45 staggered"},
+    {SweepParameter::kLayout, "layout", "layout", ""},
 };
 
-std::string KnownNames() {
-  std::string names;
-  for (const ParameterInfo& p : kParameters) names += std::string(names.empty() ? "" : ", ") + p.name;
-  return names + ", layout";
+// The named values of layout (stagger angles, deg).
+constexpr double kSideBySideDeg = 0.0;
+constexpr double kStaggeredDeg = 45.0;
+
+// In the plot of a categorical sweep, the first order and the bound sit this
+// far left and right of their category's x (the Monte Carlo on it).
+constexpr double kCategoryDodge = 0.12;
+
+const ParameterInfo* Find(SweepParameter parameter) {
+  for (const ParameterInfo& p : kParameters) {
+    if (p.parameter == parameter) return &p;
+  }
+  return nullptr;
 }
 
 Status OutOfDomain(SweepParameter parameter, double value, const std::string& rule) {
   return Status::InvalidArgument(std::string(SweepParameterName(parameter)) + " = " +
-                                 FormatNumber(value) + ": " + rule);
+                                 SweepValueText(parameter, value) + ": " + rule);
+}
+
+std::string KnownNames() {
+  std::string names;
+  for (const ParameterInfo& p : kParameters) names += std::string(names.empty() ? "" : ", ") + p.name;
+  return names;
 }
 
 std::string Number(double v) { return FormatRoundTrip(v); }
 
 }  // namespace
 
+const std::vector<SweepParameter>& AllSweepParameters() {
+  static const std::vector<SweepParameter> all = [] {
+    std::vector<SweepParameter> out;
+    for (const ParameterInfo& p : kParameters) out.push_back(p.parameter);
+    return out;
+  }();
+  return all;
+}
+
 const char* SweepParameterName(SweepParameter parameter) {
-  for (const ParameterInfo& p : kParameters) {
-    if (p.parameter == parameter) return p.name;
-  }
-  return "?";
+  const ParameterInfo* p = Find(parameter);
+  return p ? p->name : "?";
+}
+
+std::string SweepParameterNoun(SweepParameter parameter) {
+  const ParameterInfo* p = Find(parameter);
+  return p ? p->noun : "?";
 }
 
 std::string SweepParameterLabel(SweepParameter parameter) {
-  for (const ParameterInfo& p : kParameters) {
-    if (p.parameter == parameter) return p.label;
+  const ParameterInfo* p = Find(parameter);
+  if (!p) return "?";
+  return *p->unit ? std::string(p->noun) + " (" + p->unit + ")" : std::string(p->noun);
+}
+
+bool IsCategoricalSweep(SweepParameter parameter) { return parameter == SweepParameter::kLayout; }
+
+std::string SweepValueText(SweepParameter parameter, double value) {
+  if (parameter == SweepParameter::kLayout) {
+    if (value == kSideBySideDeg) return "side_by_side";
+    if (value == kStaggeredDeg) return "staggered";
   }
-  return "?";
+  return FormatNumber(value);
 }
 
 Result<SweepParameter> ParseSweepParameter(const std::string& text) {
-  if (text == "layout") return SweepParameter::kStaggerDeg;
   for (const ParameterInfo& p : kParameters) {
     if (text == p.name) return p.parameter;
   }
@@ -78,9 +118,9 @@ Result<std::vector<double>> ParseSweepValues(const std::string& text_parameter,
       const std::string word =
           values.substr(start, at == std::string::npos ? std::string::npos : at - start);
       if (word == "side_by_side") {
-        out.push_back(0.0);
+        out.push_back(kSideBySideDeg);
       } else if (word == "staggered") {
-        out.push_back(45.0);
+        out.push_back(kStaggeredDeg);
       } else {
         return Status::InvalidArgument("layout '" + word +
                                        "': expected side_by_side or staggered (or sweep "
@@ -172,7 +212,12 @@ Result<ModuleDesign> ApplySweepValue(const ModuleDesign& base, SweepParameter pa
           Rigid3d(Eigen::Matrix3d::Identity(), (value - current) * view->viewing_direction));
       break;
     }
+    case SweepParameter::kLayout:
     case SweepParameter::kStaggerDeg: {
+      if (parameter == SweepParameter::kLayout && value != kSideBySideDeg &&
+          value != kStaggeredDeg) {
+        return OutOfDomain(parameter, value, "must be 0 (side_by_side) or 45 (staggered)");
+      }
       if (!(value >= 0.0 && value <= 90.0)) {
         return OutOfDomain(parameter, value, "must be in [0, 90]");
       }
@@ -225,7 +270,7 @@ Result<DesignSweep> RunDesignSweep(const ModuleDesign& base, SweepParameter para
   const int total = static_cast<int>(values.size()) * options.iterations;
   for (size_t i = 0; i < values.size(); ++i) {
     const std::string where = std::string(SweepParameterName(parameter)) + " = " +
-                              FormatNumber(values[i]) + ": ";
+                              SweepValueText(parameter, values[i]) + ": ";
     Result<ModuleDesign> design = ApplySweepValue(base, parameter, values[i]);
     if (!design.ok()) return design.status();  // names the parameter and value
     MonteCarloOptions point_options = options;
@@ -271,8 +316,9 @@ std::string DesignSweep::ToCsv() const {
 }
 
 LinePlot DesignSweep::ToPlot() const {
+  const bool categorical = IsCategoricalSweep(parameter);
   LinePlot plot;
-  plot.title = std::string("Design sweep over ") + SweepParameterName(parameter) +
+  plot.title = "Design sweep over the " + SweepParameterNoun(parameter) +
                (points.empty() ? std::string()
                                : " (" + std::to_string(points.front().report.iterations) +
                                      " Monte Carlo iterations per point, " +
@@ -280,7 +326,19 @@ LinePlot DesignSweep::ToPlot() const {
                                      " weighting)");
   PlotPanel absolute, relative;
   absolute.title = "standard deviation of L";
-  absolute.x_label = relative.x_label = SweepParameterLabel(parameter);
+  std::string x_label = SweepParameterLabel(parameter);
+  if (categorical) {
+    // The API has numeric axes only: the categories sit at 1, 2, ... and
+    // the label says which is which.
+    std::string names;
+    for (size_t i = 0; i < points.size(); ++i) {
+      std::string name = SweepValueText(parameter, points[i].value);
+      std::replace(name.begin(), name.end(), '_', ' ');
+      names += (i ? ", " : "") + std::to_string(i + 1) + " = " + name;
+    }
+    x_label += " (" + names + ")";
+  }
+  absolute.x_label = relative.x_label = x_label;
   absolute.y_label = "std of L (mm)";
   relative.title = "relative uncertainty of L";
   relative.y_label = "u(L) / L (ppm)";
@@ -292,19 +350,23 @@ LinePlot DesignSweep::ToPlot() const {
     mc.label = "Monte Carlo" + suffix;
     mc.style = PlotSeries::Style::kMarkers;
     fo.label = "first order" + suffix;
-    fo.style = PlotSeries::Style::kLine;
+    fo.style = categorical ? PlotSeries::Style::kMarkers : PlotSeries::Style::kLineMarkers;
     crb.label = "Cramer-Rao bound" + suffix;
-    crb.style = PlotSeries::Style::kDashed;
+    crb.style = categorical ? PlotSeries::Style::kMarkers : PlotSeries::Style::kDashed;
     PlotSeries mc_rel = mc, fo_rel = fo, crb_rel = crb;
-    for (const DesignSweepPoint& p : points) {
+    for (size_t i = 0; i < points.size(); ++i) {
+      const DesignSweepPoint& p = points[i];
       const MonteCarloLength& l = p.report.lengths[k];
       const SampleSummary& s = l.photo_mm;
       const int m = p.report.succeeded;
       const double std_u = m > 1 ? s.std_dev / std::sqrt(2.0 * (m - 1)) : 0.0;
       const double to_ppm = 1e6 / l.true_mm;
-      for (PlotSeries* series : {&mc, &fo, &crb, &mc_rel, &fo_rel, &crb_rel}) {
-        series->x.push_back(p.value);
-      }
+      // A category's three markers side by side (they often coincide).
+      const double x = categorical ? static_cast<double>(i + 1) : p.value;
+      const double dodge = categorical ? kCategoryDodge : 0.0;
+      for (PlotSeries* series : {&mc, &mc_rel}) series->x.push_back(x);
+      for (PlotSeries* series : {&fo, &fo_rel}) series->x.push_back(x - dodge);
+      for (PlotSeries* series : {&crb, &crb_rel}) series->x.push_back(x + dodge);
       mc.y.push_back(s.std_dev);
       mc.y_err.push_back(std_u);
       fo.y.push_back(s.first_order_std);
@@ -314,6 +376,7 @@ LinePlot DesignSweep::ToPlot() const {
       fo_rel.y.push_back(s.first_order_std * to_ppm);
       crb_rel.y.push_back(s.cramer_rao_std * to_ppm);
     }
+    // Drawn in this order: the dashed bound over the solid first order.
     absolute.series.push_back(std::move(fo));
     absolute.series.push_back(std::move(crb));
     absolute.series.push_back(std::move(mc));

@@ -11,6 +11,7 @@
 
 #include "opl/core/format.h"
 #include "opl/geometry/spherical.h"
+#include "opl/io/json_text.h"
 #include "opl/geometry/rotation.h"
 #include "opl/model/module_calibration.h"
 #include "opl/scale/scale_factor.h"
@@ -335,7 +336,6 @@ Result<MonteCarloReport> RunMeasurementMonteCarlo(const ModuleDesign& design,
 
   // Reduction, in index order.
   const size_t ns = sources.size();
-  std::vector<std::vector<double>> origin(ns * 3), angle(ns * 3);
   for (int i = 0; i < m; ++i) {
     const IterationResult& r = results[static_cast<size_t>(i)];
     if (!r.ok) {
@@ -343,11 +343,11 @@ Result<MonteCarloReport> RunMeasurementMonteCarlo(const ModuleDesign& design,
       continue;
     }
     ++report.succeeded;
+    report.sample_iterations.push_back(i);
     for (size_t s = 0; s < ns; ++s) {
-      for (int k = 0; k < 3; ++k) {
-        origin[s * 3 + static_cast<size_t>(k)].push_back(r.origins[s][k]);
-        angle[s * 3 + static_cast<size_t>(k)].push_back(r.angle_offsets[s][k]);
-      }
+      MonteCarloSource& out = report.sources[s];
+      out.origin_samples_mm.push_back(r.origins[s]);
+      out.rotation_samples_rad.push_back(out.true_rotation_xyz_rad + r.angle_offsets[s]);
     }
     for (size_t l = 0; l < report.lengths.size(); ++l) {
       report.lengths[l].samples_mm.push_back(r.lengths[l]);
@@ -359,11 +359,24 @@ Result<MonteCarloReport> RunMeasurementMonteCarlo(const ModuleDesign& design,
                               " iterations failed; first: " + report.first_failure);
   }
   const double p = options.coverage_probability;
+  // One coordinate at a time, from the iterations' results (the angles as
+  // the wrapped offsets from the design's, which the samples add back).
+  std::vector<double> values;
+  values.reserve(static_cast<size_t>(report.succeeded));
+  const auto coordinate = [&results, &values](auto get) -> const std::vector<double>& {
+    values.clear();
+    for (const IterationResult& r : results) {
+      if (r.ok) values.push_back(get(r));
+    }
+    return values;
+  };
   for (size_t s = 0; s < ns; ++s) {
     MonteCarloSource& out = report.sources[s];
     for (int k = 0; k < 3; ++k) {
-      const SampleSummary o = Summarize(origin[s * 3 + static_cast<size_t>(k)], p);
-      const SampleSummary a = Summarize(angle[s * 3 + static_cast<size_t>(k)], p);
+      const SampleSummary o =
+          Summarize(coordinate([s, k](const IterationResult& r) { return r.origins[s][k]; }), p);
+      const SampleSummary a = Summarize(
+          coordinate([s, k](const IterationResult& r) { return r.angle_offsets[s][k]; }), p);
       out.origin_mean_mm[k] = o.mean;
       out.origin_std_mm[k] = o.std_dev;
       out.rotation_mean_rad[k] = out.true_rotation_xyz_rad[k] + a.mean;
@@ -434,13 +447,14 @@ std::string MonteCarloReport::ToText() const {
   return out;
 }
 
-std::string MonteCarloReport::ToJson() const {
+std::string MonteCarloReport::ToJson(bool include_samples) const {
   using nlohmann::ordered_json;
   ordered_json doc = internal::RunHeaderJson("opl.monte_carlo_report", iterations, succeeded, failed,
                                               first_failure, seed, coverage_probability);
   doc["weighting"] = SpotWeightingName(weighting);
   doc["spot_noise_mm"] = VectorJson(spot_noise_mm);
   doc["per_spot_noise"] = per_spot_noise;
+  if (include_samples) doc["sample_iterations"] = sample_iterations;
   ordered_json length_array = ordered_json::array();
   for (const MonteCarloLength& l : lengths) {
     ordered_json j;
@@ -454,6 +468,7 @@ std::string MonteCarloReport::ToJson() const {
     j["first_order_std_mm"] = l.photo_mm.first_order_std;
     j["cramer_rao_std_mm"] = l.photo_mm.cramer_rao_std;
     j["std_over_cramer_rao"] = Ratio(l.photo_mm.std_dev, l.photo_mm.cramer_rao_std);
+    if (include_samples) j["samples_mm"] = l.samples_mm;
     length_array.push_back(j);
   }
   doc["lengths"] = length_array;
@@ -472,6 +487,13 @@ std::string MonteCarloReport::ToJson() const {
     j["rotation_std_rad"] = VectorJson(s.rotation_std_rad);
     j["rotation_first_order_std_rad"] = VectorJson(s.rotation_first_order_std_rad);
     j["rotation_cramer_rao_std_rad"] = VectorJson(s.rotation_cramer_rao_std_rad);
+    if (include_samples) {
+      ordered_json origins = ordered_json::array(), rotations = ordered_json::array();
+      for (const Eigen::Vector3d& v : s.origin_samples_mm) origins.push_back(VectorJson(v));
+      for (const Eigen::Vector3d& v : s.rotation_samples_rad) rotations.push_back(VectorJson(v));
+      j["origin_samples_mm"] = std::move(origins);
+      j["rotation_samples_rad"] = std::move(rotations);
+    }
     source_array.push_back(j);
   }
   doc["sources"] = source_array;
@@ -483,8 +505,9 @@ std::string MonteCarloReport::ToJson() const {
   scale["first_order_std"] = scale_factor.first_order_std;
   scale["cramer_rao_std"] = scale_factor.cramer_rao_std;
   scale["std_over_cramer_rao"] = Ratio(scale_factor.std_dev, scale_factor.cramer_rao_std);
+  if (include_samples) scale["samples"] = scale_samples;
   doc["scale_factor"] = scale;
-  return doc.dump(2) + "\n";
+  return CompactNumberArrays(doc.dump(2)) + "\n";
 }
 
 }  // namespace opl

@@ -1,11 +1,15 @@
 // Runs `opl_simulate mc` as a user would: the Monte Carlo uncertainty of a
-// measurement (JCGM 101) of examples/staggered_design.json, as JSON and text.
+// measurement (JCGM 101) of examples/staggered_design.json, as JSON and text,
+// with its figure (--plot) and its samples (--samples).
 #include <algorithm>
+#include <filesystem>
 #include <string>
+#include <vector>
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
 
 #include "support/provenance_strip.h"
 #include "cli_test_util.h"
@@ -123,6 +127,66 @@ TEST(SimulateMcCli, CalibrationOptionsNeedCalibration) {
                 "opl_simulate: --weighting: unknown weighting 'best'");
 }
 
+// --plot: the figure, written before the report is printed; --samples: every
+// iteration's values in the JSON.
+TEST(SimulateMcCli, PlotAndSamples) {
+  testing_support::TempDir dir;
+  const std::string png = dir.File("mc.png");
+  const RunResult r = Simulate("mc --design " + kDesign +
+                               " --iterations 60 --seed 5 --threads 2 --json --samples --plot " + png);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.err, "");
+  const cv::Mat image = cv::imread(png, cv::IMREAD_COLOR);
+  ASSERT_FALSE(image.empty());
+  EXPECT_EQ(image.cols, 1280);  // two panels: L of A-B and s
+  EXPECT_GE(image.rows, 480);
+  const nlohmann::json j = nlohmann::json::parse(r.out);
+  ASSERT_EQ(j["sample_iterations"].size(), 60u);
+  EXPECT_EQ(j["sample_iterations"][59], 59);
+  ASSERT_EQ(j["lengths"][0]["samples_mm"].size(), 60u);
+  EXPECT_EQ(j["scale_factor"]["samples"].size(), 60u);
+  ASSERT_EQ(j["sources"][1]["origin_samples_mm"].size(), 60u);
+  EXPECT_EQ(j["sources"][1]["origin_samples_mm"][0].size(), 3u);
+  EXPECT_EQ(j["sources"][0]["rotation_samples_rad"].size(), 60u);
+  // The sample mean is the reported mean.
+  double sum = 0.0;
+  for (const nlohmann::json& v : j["lengths"][0]["samples_mm"]) sum += v.get<double>();
+  EXPECT_NEAR(sum / 60.0, j["lengths"][0]["mean_mm"].get<double>(), 1e-12);
+  // The same run without --samples: the same report without the samples.
+  const RunResult plain =
+      Simulate("mc --design " + kDesign + " --iterations 60 --seed 5 --threads 2 --json");
+  ASSERT_EQ(plain.exit_code, 0) << plain.err;
+  const nlohmann::json p = nlohmann::json::parse(plain.out);
+  EXPECT_FALSE(p.contains("sample_iterations"));
+  EXPECT_EQ(p["lengths"][0]["std_mm"], j["lengths"][0]["std_mm"]);
+  EXPECT_FALSE(p["lengths"][0].contains("samples_mm"));
+}
+
+// A bad --plot: the documented exit code, one line on stderr, nothing on
+// stdout and no file.
+TEST(SimulateMcCli, PlotErrorsWriteNothing) {
+  testing_support::TempDir dir;
+  const std::string base = "mc --design " + kDesign + " --iterations 30 --threads 2";
+  ExpectFailure(Simulate(base + " --plot " + dir.File("missing/mc.png")), 5, "opl_simulate: ");
+  ExpectFailure(Simulate(base + " --json --plot " + dir.File("missing/mc.png")), 5,
+                "opl_simulate: ");
+  ExpectFailure(Simulate(base + " --plot " + dir.File("mc.txt")), 2,
+                "opl_simulate: --plot '" + dir.File("mc.txt") + "': the name must end in .png");
+  ExpectFailure(Simulate(base + " --samples"), 2, "opl_simulate: ");  // --samples needs --json
+  ExpectFailure(Simulate(base + " --calibration --plot " + dir.File("mc.png")), 2,
+                "opl_simulate: --plot and --samples apply to a measurement, not to --calibration");
+  // A folder in the way of the figure.
+  ASSERT_TRUE(std::filesystem::create_directory(dir.File("taken.png")));
+  ExpectFailure(Simulate(base + " --plot " + dir.File("taken.png")), 5, "opl_simulate: ");
+  // A run that fails (no such design) leaves no figure either.
+  ExpectFailure(Simulate("mc --design /nonexistent/d.json --iterations 5 --plot " +
+                         dir.File("mc.png")),
+                3, "opl_simulate: ");
+  std::vector<std::string> left = dir.Entries();
+  EXPECT_EQ(left, std::vector<std::string>{"taken.png"});
+  EXPECT_TRUE(std::filesystem::is_empty(dir.File("taken.png")));
+}
+
 TEST(SimulateMcCli, HelpTeaches) {
   const RunResult r = Simulate("mc --help");
   EXPECT_EQ(r.exit_code, 0);
@@ -130,6 +194,9 @@ TEST(SimulateMcCli, HelpTeaches) {
   EXPECT_THAT(r.out, HasSubstr("--iterations"));
   EXPECT_THAT(r.out, HasSubstr("--threads"));
   EXPECT_THAT(r.out, HasSubstr("probabilistically symmetric"));
+  EXPECT_THAT(r.out, HasSubstr("--plot"));
+  EXPECT_THAT(r.out, HasSubstr("Freedman-Diaconis"));
+  EXPECT_THAT(r.out, HasSubstr("--samples"));
 }
 
 }  // namespace

@@ -74,6 +74,25 @@ TEST(SimulateSweepCli, NoiseSweepWritesCsvAndPlot) {
   EXPECT_GE(png.rows, 480);
 }
 
+// layout: the table and the CSV name the parameter as given, the table the
+// values by their words; the plot is written.
+TEST(SimulateSweepCli, LayoutSweep) {
+  testing_support::TempDir dir;
+  const RunResult r = Simulate("sweep --design " + kDesign +
+                               " --param layout --values side_by_side,staggered --iterations 30"
+                               " --threads 2 --out " + dir.File("l.csv") + " --plot " +
+                               dir.File("l.png"));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_THAT(r.out, StartsWith("layout "));
+  EXPECT_THAT(r.out, HasSubstr("\nside_by_side     A-B "));
+  EXPECT_THAT(r.out, HasSubstr("\nstaggered        A-B "));
+  const std::vector<std::string> lines = Lines(dir.File("l.csv"));
+  ASSERT_EQ(lines.size(), 3u);
+  EXPECT_EQ(lines[1].substr(0, 13), "layout,0,A,B,");
+  EXPECT_EQ(lines[2].substr(0, 14), "layout,45,A,B,");
+  EXPECT_FALSE(cv::imread(dir.File("l.png"), cv::IMREAD_COLOR).empty());
+}
+
 TEST(SimulateSweepCli, Errors) {
   testing_support::TempDir dir;
   const std::string out = " --out " + dir.File("s.csv") + " --plot " + dir.File("s.png");
@@ -87,6 +106,10 @@ TEST(SimulateSweepCli, Errors) {
   r = Simulate(base + " --param beams_per_side --values 5,8" + out);
   EXPECT_EQ(r.exit_code, 3);
   EXPECT_EQ(r.err, "opl_simulate: beams_per_side = 8: must be an odd integer in [3, 201]\n");
+  r = Simulate(base + " --param noise_mm --values 0.1 --out " + dir.File("s.csv") + " --plot " +
+               dir.File("s.jpg"));
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_EQ(r.err, "opl_simulate: --plot '" + dir.File("s.jpg") + "': the name must end in .png\n");
   r = Simulate(base + " --param noise_mm --values 0.1 --weighting best" + out);
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_EQ(r.out, "");

@@ -6,7 +6,7 @@
    its "format" names (files without "format" by their place: the sequencer
    configurations). A JSON file with no schema fails the test.
 3. The tools are run on the bundled examples to write every JSON output
-   (opl_simulate calibration / mc --json / mc --calibration --json / images
+   (opl_simulate calibration / mc --json [--samples] / mc --calibration --json / images
    truth.json, opl_calibrate --out, opl_measure --json (spots and images),
    opl_camera board --board-json / calibrate --out --report, opl_scene init,
    opl_verify --json,
@@ -187,6 +187,10 @@ def produce_outputs(src, tools, work):
                 "--json"])
     if text is not None:
         out.append(("opl_simulate mc --json", text, None))
+    text = run([sim, "mc", "--design", ex + "/prototype_design.json", "--iterations", "20", "--threads", "2",
+                "--json", "--samples"])
+    if text is not None:
+        out.append(("opl_simulate mc --json --samples", text, None))
     text = run([sim, "mc", "--calibration", "--design", ex + "/prototype_design.json", "--iterations", "3",
                 "--threads", "2", "--json"])
     if text is not None:
@@ -334,6 +338,10 @@ def negative_cases(schemas, documents):
         ("opl.scene_truth", setv([1, 2], "tags", 0, "center_mm"), "truth tag centre of 2 numbers"),
         ("opl.camera_calibration_report", drop("rms_px"), "camera report without rms_px"),
         ("opl.monte_carlo_report", setv("20", "iterations"), "MC report iterations as a string"),
+        ("opl.monte_carlo_report", setv(["55.1"], "lengths", 0, "samples_mm"), "MC L sample as a string"),
+        ("opl.monte_carlo_report", setv([[0.0, 19.5]], "sources", 0, "origin_samples_mm"),
+         "MC origin sample of 2 numbers"),
+        ("opl.monte_carlo_report", setv([-1], "sample_iterations"), "MC sample iteration -1"),
         ("opl.calibration_monte_carlo_report", drop("lengths"), "calibration MC report without lengths"),
         ("sequencer_frame", setv(1, "lasers", "a"), "metadata line with lasers.a = 1"),
         ("sequencer_frame", drop("run"), "metadata line without run"),

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdio>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -197,6 +198,90 @@ TEST(DesignSweepTest, CsvAndPlot) {
   EXPECT_EQ(plot.panels[0].series[2].y[1], s.std_dev);
   EXPECT_NEAR(plot.panels[1].series[2].y[1], 1e6 * s.std_dev / (39.0 * std::sqrt(2.0)), 1e-9);
   EXPECT_EQ(plot.panels[0].x_label, "spot noise sigma, largest axis (mm)");
+  EXPECT_EQ(plot.title.substr(0, 47), "Design sweep over the spot noise sigma, largest");
+  // Drawn in this order: first order (solid line with markers), the dashed
+  // bound over it, the Monte Carlo markers on top; the legend lists the same.
+  for (const PlotPanel& panel : plot.panels) {
+    ASSERT_EQ(panel.series.size(), 3u);
+    EXPECT_EQ(panel.series[0].label, "first order");
+    EXPECT_EQ(panel.series[0].style, PlotSeries::Style::kLineMarkers);
+    EXPECT_EQ(panel.series[1].label, "Cramer-Rao bound");
+    EXPECT_EQ(panel.series[1].style, PlotSeries::Style::kDashed);
+    EXPECT_EQ(panel.series[2].style, PlotSeries::Style::kMarkers);
+    EXPECT_EQ(panel.series[0].x, (std::vector<double>{0.1, 0.2}));
+  }
+}
+
+// Every parameter --param accepts has its label with the unit in words: the
+// one table of design_sweep.cc, checked entry by entry.
+TEST(DesignSweepTest, EveryParameterHasAHumanLabel) {
+  const std::vector<std::pair<std::string, std::string>> expected = {
+      {"noise_mm", "spot noise sigma, largest axis (mm)"},
+      {"full_angle_deg", "fan full angle (deg)"},
+      {"beams_per_side", "beams per side n"},
+      {"separation_mm", "separation of the origins (mm)"},
+      {"distance_mm", "projection distance (mm)"},
+      {"stagger_deg", "stagger of the baseline (deg; 0 side by side, 45 staggered)"},
+      {"layout", "layout"},
+  };
+  ASSERT_EQ(AllSweepParameters().size(), expected.size());
+  std::string known;
+  for (size_t i = 0; i < expected.size(); ++i) {
+    const SweepParameter p = AllSweepParameters()[i];
+    EXPECT_EQ(SweepParameterName(p), expected[i].first);
+    Result<SweepParameter> parsed = ParseSweepParameter(expected[i].first);
+    ASSERT_TRUE(parsed.ok()) << expected[i].first;
+    EXPECT_EQ(*parsed, p);
+    EXPECT_EQ(SweepParameterLabel(p), expected[i].second);
+    EXPECT_EQ(SweepParameterLabel(p).find('_'), std::string::npos);
+    EXPECT_EQ(SweepParameterNoun(p).find('_'), std::string::npos);
+    EXPECT_EQ(IsCategoricalSweep(p), expected[i].first == "layout");
+    known += (i ? ", " : "") + expected[i].first;
+  }
+  // ... and the error for an unknown name lists exactly these.
+  EXPECT_EQ(ParseSweepParameter("angle").status().message(),
+            "unknown sweep parameter 'angle' (known: " + known + ")");
+  EXPECT_EQ(SweepValueText(SweepParameter::kLayout, 0), "side_by_side");
+  EXPECT_EQ(SweepValueText(SweepParameter::kLayout, 45), "staggered");
+  EXPECT_EQ(SweepValueText(SweepParameter::kStaggerDeg, 45), "45");
+}
+
+// layout is categorical: markers only at 1, 2 (first order and bound beside
+// the Monte Carlo), the categories named in the x label; the same designs
+// as stagger_deg at 0 and 45.
+TEST(DesignSweepTest, LayoutSweepIsDrawnAsCategories) {
+  MonteCarloOptions options = Options();
+  options.iterations = 40;
+  Result<std::vector<double>> values = ParseSweepValues("layout", "staggered,side_by_side");
+  ASSERT_TRUE(values.ok());
+  Result<DesignSweep> sweep = RunDesignSweep(Staggered(), SweepParameter::kLayout, *values, options);
+  ASSERT_TRUE(sweep.ok()) << sweep.status().message();
+  Result<DesignSweep> stagger =
+      RunDesignSweep(Staggered(), SweepParameter::kStaggerDeg, {45.0, 0.0}, options);
+  ASSERT_TRUE(stagger.ok());
+  for (size_t i = 0; i < 2; ++i) {
+    EXPECT_EQ(StdL(*sweep, i), StdL(*stagger, i));  // the same designs, the same draws
+  }
+  const LinePlot plot = sweep->ToPlot();
+  ASSERT_EQ(plot.panels.size(), 2u);
+  for (const PlotPanel& panel : plot.panels) {
+    EXPECT_EQ(panel.x_label, "layout (1 = staggered, 2 = side by side)");
+    ASSERT_EQ(panel.series.size(), 3u);
+    for (const PlotSeries& s : panel.series) EXPECT_EQ(s.style, PlotSeries::Style::kMarkers);
+    EXPECT_EQ(panel.series[2].label, "Monte Carlo");
+    EXPECT_EQ(panel.series[2].x, (std::vector<double>{1.0, 2.0}));
+    ASSERT_EQ(panel.series[0].x.size(), 2u);
+    ASSERT_EQ(panel.series[1].x.size(), 2u);
+    for (size_t i = 0; i < 2; ++i) {
+      EXPECT_NEAR(panel.series[0].x[i], i + 1 - 0.12, 1e-15);  // first order
+      EXPECT_NEAR(panel.series[1].x[i], i + 1 + 0.12, 1e-15);  // bound
+    }
+  }
+  EXPECT_EQ(plot.title.substr(0, 28), "Design sweep over the layout");
+  EXPECT_EQ(sweep->ToCsv().substr(sweep->ToCsv().find('\n') + 1, 11), "layout,45,A");
+  EXPECT_EQ(ApplySweepValue(Staggered(), SweepParameter::kLayout, 30).status().message(),
+            "layout = 30: must be 0 (side_by_side) or 45 (staggered)");
+  EXPECT_TRUE(LayoutLinePlot(plot).ok());
 }
 
 }  // namespace

@@ -3,6 +3,7 @@
 // its errors. Run time: about 3000 locate solves in all.
 #include "opl/uncertainty/monte_carlo.h"
 
+#include <algorithm>
 #include <cmath>
 #include <iostream>
 #include <map>
@@ -10,6 +11,7 @@
 #include <vector>
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include "opl/io/module_design_json.h"
 #include "opl/sim/random.h"
@@ -203,6 +205,65 @@ TEST(MonteCarloTest, IdenticalWhateverTheThreadCount) {
   EXPECT_NE(other->lengths[0].samples_mm, one->lengths[0].samples_mm);
 }
 
+// The values of every iteration: what the summaries are computed from, and
+// in the JSON only when asked for, exactly (numbers round-trip).
+TEST(MonteCarloTest, SamplesOfEveryIteration) {
+  const ModuleDesign design = StaggeredDesign();
+  MonteCarloOptions options;
+  options.iterations = 50;
+  options.seed = 4;
+  options.threads = 2;
+  Result<MonteCarloReport> r = RunMeasurementMonteCarlo(design, options);
+  ASSERT_TRUE(r.ok()) << r.status().message();
+  ASSERT_EQ(r->sample_iterations.size(), 50u);
+  EXPECT_EQ(r->sample_iterations[49], 49);
+  ASSERT_EQ(r->sources.size(), 2u);
+  for (const MonteCarloSource& s : r->sources) {
+    ASSERT_EQ(s.origin_samples_mm.size(), 50u);
+    ASSERT_EQ(s.rotation_samples_rad.size(), 50u);
+    Eigen::Vector3d origin_sum = Eigen::Vector3d::Zero(), rotation_sum = Eigen::Vector3d::Zero();
+    for (int i = 0; i < 50; ++i) {
+      origin_sum += s.origin_samples_mm[static_cast<size_t>(i)];
+      rotation_sum += s.rotation_samples_rad[static_cast<size_t>(i)];
+    }
+    EXPECT_LT((origin_sum / 50.0 - s.origin_mean_mm).norm(), 1e-12);
+    EXPECT_LT((rotation_sum / 50.0 - s.rotation_mean_rad).norm(), 1e-12);
+    double ss = 0.0;
+    for (const Eigen::Vector3d& o : s.origin_samples_mm) ss += std::pow(o.y() - s.origin_mean_mm.y(), 2);
+    EXPECT_NEAR(std::sqrt(ss / 49.0), s.origin_std_mm.y(), 1e-12);
+  }
+  // The length between the located origins of every iteration.
+  for (size_t i = 0; i < 50; i += 7) {
+    const double l = (r->sources[0].origin_samples_mm[i] - r->sources[1].origin_samples_mm[i]).norm();
+    EXPECT_NEAR(l, r->lengths[0].samples_mm[i], 1e-9) << i;
+  }
+
+  const nlohmann::json plain = nlohmann::json::parse(r->ToJson());
+  EXPECT_FALSE(plain.contains("sample_iterations"));
+  EXPECT_FALSE(plain["lengths"][0].contains("samples_mm"));
+  EXPECT_FALSE(plain["sources"][0].contains("origin_samples_mm"));
+  EXPECT_FALSE(plain["scale_factor"].contains("samples"));
+  nlohmann::json full = nlohmann::json::parse(r->ToJson(true));
+  EXPECT_EQ(full["sample_iterations"].get<std::vector<int>>(), r->sample_iterations);
+  EXPECT_EQ(full["lengths"][0]["samples_mm"].get<std::vector<double>>(), r->lengths[0].samples_mm);
+  EXPECT_EQ(full["scale_factor"]["samples"].get<std::vector<double>>(), r->scale_samples);
+  const nlohmann::json& o = full["sources"][1]["origin_samples_mm"][13];
+  for (int k = 0; k < 3; ++k) EXPECT_EQ(o[k].get<double>(), r->sources[1].origin_samples_mm[13][k]);
+  const nlohmann::json& a = full["sources"][0]["rotation_samples_rad"][49];
+  for (int k = 0; k < 3; ++k) EXPECT_EQ(a[k].get<double>(), r->sources[0].rotation_samples_rad[49][k]);
+  // The rest is the plain report.
+  full.erase("sample_iterations");
+  full["lengths"][0].erase("samples_mm");
+  full["scale_factor"].erase("samples");
+  for (nlohmann::json& s : full["sources"]) {
+    s.erase("origin_samples_mm");
+    s.erase("rotation_samples_rad");
+  }
+  EXPECT_EQ(full, plain);
+  // Numbers arrays on one line: a vector per line, not a number per line.
+  EXPECT_NE(r->ToJson().find("\"spot_noise_mm\": [0.11, 0.073, 0.073]"), std::string::npos);
+}
+
 TEST(MonteCarloTest, ReportsProgressOnTheCallingThread) {
   const ModuleDesign design = StaggeredDesign();
   MonteCarloOptions options;
@@ -241,6 +302,15 @@ TEST(MonteCarloTest, FailedIterationsAreCountedNotFatal) {
   EXPECT_EQ(r->succeeded + r->failed, 60);
   EXPECT_EQ(r->lengths[0].samples_mm.size(), static_cast<size_t>(r->succeeded));
   EXPECT_EQ(r->first_failure.rfind("iteration ", 0), 0u) << r->first_failure;
+  // The samples name their iterations: the failed ones are missing.
+  ASSERT_EQ(r->sample_iterations.size(), static_cast<size_t>(r->succeeded));
+  for (size_t k = 1; k < r->sample_iterations.size(); ++k) {
+    EXPECT_LT(r->sample_iterations[k - 1], r->sample_iterations[k]);
+  }
+  EXPECT_GE(r->sample_iterations.front(), 0);
+  EXPECT_LT(r->sample_iterations.back(), 60);
+  const int first_failed = std::stoi(r->first_failure.substr(10));
+  EXPECT_EQ(std::count(r->sample_iterations.begin(), r->sample_iterations.end(), first_failed), 0);
   EXPECT_NE(r->ToText().find("first failure: iteration"), std::string::npos);
 
   design = base;

@@ -32,8 +32,9 @@
 //                   direction and v to this angle from the lateral plane:
 //                   0 = side by side, 45 = staggered (as far ahead as aside;
 //                   examples/staggered_design.json), 90 = one behind the other.
-//                   `layout` is the same parameter with the values
-//                   side_by_side (0) and staggered (45).
+//   layout          the same change as stagger_deg with two named values,
+//                   side_by_side (0) and staggered (45): a categorical
+//                   parameter (its plot has markers at 1, 2, ... only).
 #pragma once
 
 #include <string>
@@ -53,17 +54,32 @@ enum class SweepParameter {
   kSeparationMm,
   kDistanceMm,
   kStaggerDeg,
+  kLayout,  // stagger_deg restricted to 0 (side_by_side) and 45 (staggered)
 };
 
-// "noise_mm", "full_angle_deg", ... (the names above).
+// Every parameter, in the order of the names above.
+const std::vector<SweepParameter>& AllSweepParameters();
+
+// "noise_mm", "full_angle_deg", ... (the names above, as --param takes them).
 const char* SweepParameterName(SweepParameter parameter);
-// The axis label with its unit, e.g. "spot noise sigma, largest axis (mm)".
+// What a reader of a plot sees (one table, src/uncertainty/design_sweep.cc):
+// the quantity in words with its unit, e.g. "fan full angle (deg)" for
+// full_angle_deg; for layout just "layout" (DesignSweep::ToPlot adds the
+// categories).
 std::string SweepParameterLabel(SweepParameter parameter);
-// Parses a name above (or "layout", which is kStaggerDeg); InvalidArgument
-// listing the known names otherwise.
+// The quantity in words without its unit, for titles: "fan full angle".
+std::string SweepParameterNoun(SweepParameter parameter);
+// True for a parameter whose values are named categories (layout): its plot
+// puts the values at x = 1, 2, ... with markers only.
+bool IsCategoricalSweep(SweepParameter parameter);
+// The value as the user writes it: "side_by_side" / "staggered" for layout,
+// else the number ("0.1", "45").
+std::string SweepValueText(SweepParameter parameter, double value);
+// Parses a name above; InvalidArgument listing the known names otherwise.
 Result<SweepParameter> ParseSweepParameter(const std::string& text);
 // Parses the values: "first:step:last" or "v1,v2,..." (ParseNumberList); for
-// `layout` (text_parameter == "layout") the words side_by_side and staggered.
+// `layout` (text_parameter == "layout") the words side_by_side (0) and
+// staggered (45).
 Result<std::vector<double>> ParseSweepValues(const std::string& text_parameter,
                                              const std::string& values);
 
@@ -92,8 +108,16 @@ struct DesignSweep {
   // u_rel_ppm = 1e6 std / true. Numbers round-trip.
   std::string ToCsv() const;
   // Two panels against the parameter: std of L (mm) and u(L)/L (ppm), each
-  // with the Monte Carlo (markers, +- std_u error bars), the first-order
-  // prediction (line) and the Cramer-Rao bound (dashed), per length.
+  // with, per length, the first-order prediction (solid line with markers at
+  // the values), the Cramer-Rao bound (dashed, drawn over the first order:
+  // where they coincide the first order shows in the dashes' gaps and at its
+  // markers) and the Monte Carlo (markers, +- std_u error bars). The title
+  // and the x label name the parameter in words with its unit
+  // (SweepParameterLabel). A categorical sweep (layout) has the values at
+  // x = 1, 2, ... in sweep order, every series as markers only (the Monte
+  // Carlo at x, the first order at x - 0.12 and the bound at x + 0.12, so
+  // that equal values stay apart), and the x label names the categories:
+  // "layout (1 = side by side, 2 = staggered)".
   LinePlot ToPlot() const;
 };
 

@@ -121,6 +121,11 @@ struct MonteCarloSource {
   Eigen::Vector3d origin_cramer_rao_std_mm = Eigen::Vector3d::Zero();
   Eigen::Vector3d rotation_cramer_rao_std_rad = Eigen::Vector3d::Zero();
   int spots = 0;  // spots of this source on the surface
+  // Of every successful iteration, in index order (MonteCarloReport::
+  // sample_iterations): the located origin (mm) and pose angles (rad, R = Rx
+  // Ry Rz; the design's angles plus the wrapped difference, as the mean).
+  std::vector<Eigen::Vector3d> origin_samples_mm{};
+  std::vector<Eigen::Vector3d> rotation_samples_rad{};
 };
 
 struct MonteCarloLength {
@@ -145,12 +150,20 @@ struct MonteCarloReport {
   std::vector<MonteCarloLength> lengths;  // every pair (i < j), design order
   SampleSummary scale_factor;             // s (expected 1)
   std::vector<double> scale_samples;      // s of every successful iteration
+  // The index i (0 .. iterations - 1) of every successful iteration, in
+  // order: sample k of every *samples* vector is iteration
+  // sample_iterations[k] (its seed IterationSeed(seed, i)).
+  std::vector<int> sample_iterations{};
 
   // Readable summary (mm, microradians, ppm of s).
   std::string ToText() const;
   // One JSON object, format "opl.monte_carlo_report" version 1 (docs/uncertainty.md).
   // The threads count is left out, so that the JSON is identical whatever it is.
-  std::string ToJson() const;
+  // With include_samples, the values of every successful iteration too:
+  // "sample_iterations", lengths[].samples_mm, scale_factor.samples,
+  // sources[].origin_samples_mm and sources[].rotation_samples_rad. Arrays
+  // of numbers are written on one line each.
+  std::string ToJson(bool include_samples = false) const;
 };
 
 // The (i+1)-th output of SplitMix64(seed): the seed of iteration i.

@@ -4,6 +4,7 @@
 // parses options, reads files, writes outputs atomically and maps errors to
 // exit codes.
 #include <cmath>
+#include <limits>
 #include <filesystem>
 #include <iostream>
 #include <string>
@@ -19,6 +20,7 @@
 #include "opl/pipeline/calibrate_images.h"
 #include "opl/pipeline/measure_images.h"
 #include "opl/sim/module_design.h"
+#include "opl/core/format.h"
 #include "opl/io/atomic_file.h"
 #include "opl/io/module_calibration_json.h"
 #include "opl/io/points_csv.h"
@@ -26,6 +28,7 @@
 #include "opl/io/output_set.h"
 #include "opl/report/calibration_report.h"
 #include "opl/report/grid_heatmap.h"
+#include "opl/report/plot_format.h"
 
 namespace {
 
@@ -40,6 +43,9 @@ struct Args {
   std::string design_path;
   std::string out_path;
   std::string report_dir;
+  double heatmap_max_mm = 0.0;  // 0: one scale for all sources, their largest value
+  double heatmap_noise_mm = std::numeric_limits<double>::quiet_NaN();  // NaN: none
+  std::string heatmap_format = "png";
   int beams_per_side = 0;
   bool allow_extra_columns = false;
   std::string loss = "cauchy";
@@ -120,13 +126,37 @@ int WriteOutputs(const Args& args, const opl::ModuleCalibrationResult& result,
   Result<std::string> json = FormatModuleCalibrationJson(result.calibration);
   if (!json.ok()) return cli::Fail(kTool, json.status().message(), cli::kExitNoSolution);
 
-  // Everything is computed (and the PNGs rendered) before the first write.
+  // Everything is computed (and the heat maps rendered) before the first
+  // write. The heat maps share one colour scale, so that the sources compare
+  // by colour: --heatmap-max-mm, or the largest value of them all.
   if (!args.report_dir.empty()) {
-    std::vector<std::pair<std::string, std::vector<unsigned char>>> images;
+    std::vector<GridHeatmap> heatmaps;
+    std::string names;
     for (const SourceCalibrationResult& s : result.sources) {
-      Result<std::vector<unsigned char>> png = RenderGridHeatmapPng(PointToRayHeatmap(s));
-      if (!png.ok()) return cli::Fail(kTool, png.status().message(), cli::kExitInternalError);
-      images.emplace_back("heatmap_" + s.calibration.name + ".png", std::move(*png));
+      heatmaps.push_back(PointToRayHeatmap(s));
+      names += (names.empty() ? "" : ", ") + s.calibration.name;
+    }
+    const bool fixed = args.heatmap_max_mm > 0;
+    const double scale_max = fixed ? args.heatmap_max_mm : SharedScaleMax(heatmaps);
+    const std::string scale_note = fixed ? "--heatmap-max-mm"
+                                   : heatmaps.size() > 1 ? "one scale for sources " + names
+                                                         : "";
+    Result<PlotFormat> format = PlotFormatFromPath("heatmap." + args.heatmap_format);
+    if (!format.ok()) return cli::Fail(kTool, format.status().message(), cli::kExitUsage);
+    PlotMetadata metadata;  // a PDF's provenance (the others are stamped)
+    metadata.creator = "OPL " + provenance.tool + " " + provenance.version;
+    metadata.subject = FormatProvenanceJson(provenance);
+    std::vector<std::pair<std::string, std::vector<unsigned char>>> images;
+    for (size_t i = 0; i < heatmaps.size(); ++i) {
+      heatmaps[i].scale_max = scale_max;
+      heatmaps[i].scale_note = scale_note;
+      heatmaps[i].noise_level = args.heatmap_noise_mm;
+      heatmaps[i].value_unit = "mm";
+      Result<std::vector<unsigned char>> bytes = RenderGridHeatmap(heatmaps[i], *format, metadata);
+      if (!bytes.ok()) return cli::Fail(kTool, bytes.status().message(), cli::kExitInternalError);
+      images.emplace_back("heatmap_" + result.sources[i].calibration.name + "." +
+                              PlotFormatName(*format),
+                          std::move(*bytes));
     }
     std::error_code ec;
     std::filesystem::create_directories(args.report_dir, ec);
@@ -144,9 +174,10 @@ int WriteOutputs(const Args& args, const opl::ModuleCalibrationResult& result,
     }
     for (const auto& [name, bytes] : images) {
       const std::string text(bytes.begin(), bytes.end());
-      if (Status st = outputs.Add((dir / name).string(), text); !st.ok()) {
-        return cli::FailWrite(kTool, st);
-      }
+      // A PDF carries its provenance in its metadata (set when drawn).
+      const Status st = *format == PlotFormat::kPdf ? outputs.AddVerbatim((dir / name).string(), text)
+                                                    : outputs.Add((dir / name).string(), text);
+      if (!st.ok()) return cli::FailWrite(kTool, st);
     }
   }
   if (Status st = outputs.Add(args.out_path, *json); !st.ok()) return cli::FailWrite(kTool, st);
@@ -223,7 +254,8 @@ int Run(int argc, char** argv) {
       "Output: the module calibration JSON (--out), with per-beam covariances and per-\n"
       "source quality figures, and a summary on stdout. With --report DIR also:\n"
       "beams.csv (per-beam quality), samples.csv (every sample's residual and status)\n"
-      "and heatmap_<source>.png (mean point-to-ray distance per beam over the grid).\n",
+      "and heatmap_<source>.png (mean point-to-ray distance per beam over the grid; all\n"
+      "sources on one colour scale, so that equal colours are equal distances).\n",
       kTool);
   app.add_option("--spots", args.spots.path,
                  "Spots CSV of the session: [source,beam,]x,y,z[,sx,sy,sz],slice")
@@ -259,9 +291,24 @@ int Run(int argc, char** argv) {
       ->required()
       ->type_name("FILE");
   app.add_option("--report", args.report_dir,
-                 "Folder for beams.csv, samples.csv and heatmap_<source>.png (created if "
-                 "missing; files written atomically)")
+                 "Folder for beams.csv, samples.csv and heatmap_<source>.png (or .svg, .pdf;\n"
+                 "created if missing; files written atomically)")
       ->type_name("DIR");
+  app.add_option("--heatmap-max-mm", args.heatmap_max_mm,
+                 "With --report: top of the heat maps' colour scale, mm (> 0), e.g. to compare\n"
+                 "runs; larger distances get the top colour and a triangle on the bar. Default:\n"
+                 "the largest mean point-to-ray distance of all sources (one scale per run)")
+      ->type_name("MM");
+  app.add_option("--heatmap-noise-mm", args.heatmap_noise_mm,
+                 "With --report: the mean point-to-ray distance noise alone gives, mm (>= 0;\n"
+                 "about 1.25 x the spots' standard deviation across the beam). A map whose\n"
+                 "beams are all at or below it says 'All beams at the noise level'")
+      ->type_name("MM");
+  app.add_option("--heatmap-format", args.heatmap_format,
+                 "With --report: png (default), svg or pdf (vector, for print); the PDF\n"
+                 "carries the provenance in its metadata")
+      ->check(CLI::IsMember({"png", "svg", "pdf"}))
+      ->type_name("FORMAT");
   app.add_option("--beams-per-side", args.beams_per_side,
                  "n of the n x n grids (odd, 3 to 201); default: the smallest odd n with\n"
                  "n^2 >= the largest beam id of each source")
@@ -302,6 +349,9 @@ int Run(int argc, char** argv) {
       "  opl_simulate slices --design examples/prototype_design.json --depths 750:65:1335 \\\n"
       "      --out slices.csv\n"
       "  opl_calibrate --spots slices.csv --out module.json --report report/\n"
+      "  # vector heat maps for print, on the scale of an earlier run, noise marked:\n"
+      "  opl_calibrate --spots slices.csv --out module.json --report report/ \\\n"
+      "      --heatmap-format pdf --heatmap-max-mm 0.2 --heatmap-noise-mm 0.1\n"
       "  opl_calibrate --spots session.txt --columns id,x,y,z,slice --design design.json \\\n"
       "      --out module.json\n"
       "  opl_calibrate --spots session.csv --targets targets.csv --artifact T1,T2 \\\n"
@@ -328,6 +378,18 @@ int Run(int argc, char** argv) {
              {"--report (samples.csv)", in_report("samples.csv")}})) {
       return *code;
     }
+  }
+  if (app.count("--heatmap-max-mm") > 0 &&
+      !(std::isfinite(args.heatmap_max_mm) && args.heatmap_max_mm > 0)) {
+    return cli::Fail(kTool, "--heatmap-max-mm must be finite and > 0, got " +
+                                FormatNumber(args.heatmap_max_mm),
+                     cli::kExitUsage);
+  }
+  if (app.count("--heatmap-noise-mm") > 0 &&
+      !(std::isfinite(args.heatmap_noise_mm) && args.heatmap_noise_mm >= 0)) {
+    return cli::Fail(kTool, "--heatmap-noise-mm must be finite and >= 0, got " +
+                                FormatNumber(args.heatmap_noise_mm),
+                     cli::kExitUsage);
   }
   if (args.image_run.verbose) cli::ShowSolverLogging();
   if (args.spots.path.empty() == args.images_dir.empty()) {

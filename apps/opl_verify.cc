@@ -19,6 +19,7 @@
 #include "opl/pipeline/measure_images.h"
 #include "opl/pipeline/verify_lengths.h"
 #include "opl/report/line_plot.h"
+#include "opl/report/plot_format.h"
 
 namespace {
 
@@ -85,8 +86,9 @@ int Run(int argc, char** argv) {
                  "Write the report as JSON (format opl.verify_report, docs/verify.md)")
       ->type_name("FILE");
   app.add_option("--plot", args.plot_path,
-                 "Write a PNG plot of E against L_cal, every column with its +-U(E)")
-      ->type_name("FILE.png");
+                 "Write a plot of E against L_cal, every column with its +-U(E); the name's\n"
+                 "extension picks the format: .png, .svg or .pdf (vector, for print)")
+      ->type_name("FILE");
   app.add_option("--threads", args.threads, "Detection threads, >= 0; 0 = every core")
       ->capture_default_str();
   app.add_flag("--one-pose-per-camera", args.one_pose_per_camera,
@@ -109,9 +111,11 @@ int Run(int argc, char** argv) {
           {{"--csv", args.csv_path}, {"--json", args.json_path}, {"--plot", args.plot_path}})) {
     return *code;
   }
-  if (!args.plot_path.empty() && std::filesystem::path(args.plot_path).extension() != ".png") {
-    return cli::Fail(kTool, "--plot '" + args.plot_path + "': the name must end in .png",
-                     cli::kExitUsage);
+  std::optional<opl::PlotFormat> plot_format;
+  if (!args.plot_path.empty()) {
+    opl::Result<opl::PlotFormat> format = opl::PlotFormatFromPath(args.plot_path);
+    if (!format.ok()) return cli::Fail(kTool, "--plot " + format.status().message(), cli::kExitUsage);
+    plot_format = *format;
   }
   if (args.threads < 0) {
     return cli::Fail(kTool, "--threads must be >= 0, got " + std::to_string(args.threads),
@@ -170,11 +174,16 @@ int Run(int argc, char** argv) {
   }
   if (!args.plot_path.empty()) {
     const std::string scene_name = std::filesystem::path(args.scene_path).filename().string();
-    Result<std::vector<unsigned char>> png = RenderLinePlotPng(report->ToPlot(scene_name));
-    if (!png.ok()) return cli::FailWrite(kTool, png.status());
-    if (Status st = outputs.Add(args.plot_path, std::string(png->begin(), png->end())); !st.ok()) {
-      return cli::FailWrite(kTool, st);
-    }
+    PlotMetadata metadata;  // a PDF's provenance (PNG and SVG are stamped by Add)
+    metadata.creator = "OPL " + provenance.tool + " " + provenance.version;
+    metadata.subject = FormatProvenanceJson(provenance);
+    Result<std::vector<unsigned char>> plot =
+        RenderLinePlot(report->ToPlot(scene_name), *plot_format, metadata);
+    if (!plot.ok()) return cli::FailWrite(kTool, plot.status());
+    const std::string bytes(plot->begin(), plot->end());
+    const Status st = *plot_format == PlotFormat::kPdf ? outputs.AddVerbatim(args.plot_path, bytes)
+                                                       : outputs.Add(args.plot_path, bytes);
+    if (!st.ok()) return cli::FailWrite(kTool, st);
   }
   if (Status st = outputs.Commit(); !st.ok()) return cli::FailWrite(kTool, st);
   return cli::PrintToStdout(kTool, report->ToText());

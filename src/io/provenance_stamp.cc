@@ -188,6 +188,34 @@ Result<std::string> StampJpeg(const std::string& path, const std::string& jpeg,
   return jpeg.substr(0, at) + segments + jpeg.substr(at);
 }
 
+// An SVG's <metadata id="opl-provenance"> element holding the JSON object
+// (XML-escaped), the first child of the root <svg> element, after a leading
+// <title> if there is one.
+Result<std::string> StampSvg(const std::string& path, const std::string& svg,
+                             const Provenance& provenance) {
+  const size_t root = svg.find("<svg");
+  const size_t root_end = root == std::string::npos ? root : svg.find('>', root);
+  if (root_end == std::string::npos) {
+    return Status::InvalidArgument(path + ": not an SVG (no <svg> element)");
+  }
+  size_t at = root_end + 1;
+  size_t first = at;
+  while (first < svg.size() && IsBlank(svg[first])) ++first;
+  if (svg.compare(first, 6, "<title") == 0) {
+    const size_t close = svg.find("</title>", first);
+    if (close != std::string::npos) at = close + 8;
+  }
+  std::string escaped;
+  for (char c : FormatProvenanceJson(provenance)) {
+    if (c == '&') escaped += "&amp;";
+    else if (c == '<') escaped += "&lt;";
+    else if (c == '>') escaped += "&gt;";
+    else escaped += c;
+  }
+  return svg.substr(0, at) + "\n<metadata id=\"opl-provenance\">" + escaped + "</metadata>" +
+         svg.substr(at);
+}
+
 }  // namespace
 
 Result<std::string> StampProvenance(const std::string& path, const std::string& contents,
@@ -200,6 +228,7 @@ Result<std::string> StampProvenance(const std::string& path, const std::string& 
   if (ext == ".ply") return StampPly(path, contents, provenance);
   if (ext == ".png") return StampPng(path, contents, provenance);
   if (ext == ".jpg" || ext == ".jpeg") return StampJpeg(path, contents, provenance);
+  if (ext == ".svg") return StampSvg(path, contents, provenance);
   return Status::InvalidArgument(path + ": no provenance format for '" +
                                  (ext.empty() ? std::string("(no extension)") : ext) +
                                  "' files");

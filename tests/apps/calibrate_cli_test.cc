@@ -7,6 +7,8 @@
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
 
 #include "support/provenance_strip.h"
 #include "apps/cli_test_util.h"
@@ -179,6 +181,72 @@ TEST_F(CalibrateCli, ArtifactScalesTheSession) {
   ExpectRefused(Calibrate("--spots " + slices + " --out " + dir_.File("module.json") +
                           " --artifact T1,T2 --artifact-length-mm 1677.66"),
                 2, "--artifact requires --targets");
+}
+
+// Pixels of exactly `rgb` in a PNG file.
+int CountColour(const std::string& path, int r, int g, int b) {
+  const cv::Mat img = cv::imread(path, cv::IMREAD_COLOR);
+  int count = 0;
+  for (int y = 0; y < img.rows; ++y) {
+    for (int x = 0; x < img.cols; ++x) {
+      const cv::Vec3b c = img.at<cv::Vec3b>(y, x);
+      count += c[2] == r && c[1] == g && c[0] == b;
+    }
+  }
+  return count;
+}
+
+// The heat maps of a run share one colour scale: only the source with the
+// run's largest mean point-to-ray distance has a cell in the top colour;
+// --heatmap-max-mm sets the scale; --heatmap-format picks the format.
+TEST_F(CalibrateCli, HeatMapsShareOneColourScale) {
+  const std::string slices = Session();
+  const auto run = [&](const std::string& extra) {
+    std::filesystem::remove_all(dir_.File("report"));
+    return Calibrate("--spots " + slices + " --out " + dir_.File("module.json") + " --report " +
+                     dir_.File("report") + extra);
+  };
+  ASSERT_EQ(run("").exit_code, 0);
+  // viridis(1) = RGB 253,231,37 fills the top cell (a 64 px cell, minus its
+  // text) and the colour bar's top rows (about 3 rows of 22 px).
+  const int top_a = CountColour(dir_.File("report/heatmap_A.png"), 253, 231, 37);
+  const int top_b = CountColour(dir_.File("report/heatmap_B.png"), 253, 231, 37);
+  EXPECT_GT(std::max(top_a, top_b), 2500) << top_a << " " << top_b;
+  EXPECT_LT(std::min(top_a, top_b), 300) << top_a << " " << top_b;
+
+  // The noise-level line (bold, RGB 0,110,70): only when every beam is at or
+  // below --heatmap-noise-mm.
+  EXPECT_EQ(CountColour(dir_.File("report/heatmap_A.png"), 0, 110, 70), 0);
+  ASSERT_EQ(run(" --heatmap-noise-mm 10").exit_code, 0);
+  EXPECT_GT(CountColour(dir_.File("report/heatmap_A.png"), 0, 110, 70), 100);
+  ASSERT_EQ(run(" --heatmap-noise-mm 0.001").exit_code, 0);
+  EXPECT_EQ(CountColour(dir_.File("report/heatmap_A.png"), 0, 110, 70), 0);
+
+  // A fixed scale far above the data: every cell near viridis(0) = 68,1,84.
+  ASSERT_EQ(run(" --heatmap-max-mm 1000").exit_code, 0);
+  EXPECT_GT(CountColour(dir_.File("report/heatmap_A.png"), 68, 1, 84), 121 * 3000);
+  EXPECT_LT(CountColour(dir_.File("report/heatmap_A.png"), 253, 231, 37), 300);
+
+  // SVG and PDF, each with the run's provenance.
+  ASSERT_EQ(run(" --heatmap-format svg").exit_code, 0);
+  const std::string svg = testing_support::ReadAll(dir_.File("report/heatmap_B.svg"));
+  EXPECT_THAT(svg, HasSubstr("<title>Source B: mean point-to-ray distance per beam</title>"));
+  EXPECT_THAT(svg, HasSubstr("<metadata id=\"opl-provenance\">{\"tool\":\"opl_calibrate\""));
+  ASSERT_EQ(run(" --heatmap-format pdf").exit_code, 0);
+  const std::string pdf = testing_support::ReadAll(dir_.File("report/heatmap_A.pdf"));
+  EXPECT_EQ(pdf.substr(0, 5), "%PDF-");
+  EXPECT_THAT(pdf, HasSubstr("/Title (Source A: mean point-to-ray distance per beam)"));
+  // "OPL opl_calibrate " in UTF-16 (cairo's encoding when the text has
+  // parentheses: "(commit ...)").
+  EXPECT_THAT(pdf, HasSubstr("/Creator <FEFF004F0050004C0020006F0070006C005F00630061006C0069006200"
+                             "72006100740065"));
+  EXPECT_THAT(pdf, HasSubstr("/Subject <FEFF007B00220074006F006F006C0022"));  // {"tool"
+  EXPECT_FALSE(std::filesystem::exists(dir_.File("report/heatmap_A.png")));
+
+  std::filesystem::remove(dir_.File("module.json"));
+  ExpectRefused(run(" --heatmap-max-mm 0"), 2, "--heatmap-max-mm must be finite and > 0, got 0");
+  ExpectRefused(run(" --heatmap-format jpg"), 2, "--heatmap-format");
+  ExpectRefused(run(" --heatmap-noise-mm -1"), 2, "--heatmap-noise-mm must be finite and >= 0, got -1");
 }
 
 TEST_F(CalibrateCli, BadSessionsAreRefusedAndNothingIsWritten) {

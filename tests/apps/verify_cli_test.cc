@@ -207,7 +207,8 @@ TEST_F(VerifyCli, UsageAndWriteErrors) {
   EXPECT_THAT(r.err, HasSubstr("--calibration is required"));
   r = Verify(Inputs() + " --plot " + out.File("plot.jpg"));
   EXPECT_EQ(r.exit_code, 2);
-  EXPECT_THAT(r.err, HasSubstr("--plot '" + out.File("plot.jpg") + "': the name must end in .png"));
+  EXPECT_THAT(r.err, HasSubstr("--plot " + out.File("plot.jpg") +
+                               ": a figure must be named .png, .svg or .pdf (got '.jpg')"));
   r = Verify(Inputs() + " --csv " + scene_);
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_THAT(r.err, HasSubstr("is the same file as --scene"));

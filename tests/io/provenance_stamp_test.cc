@@ -180,6 +180,37 @@ TEST(StampProvenance, JpegGetsACommentSegmentAfterItsAppSegments) {
             "x.jpeg: not a JPEG (no SOI marker)");
 }
 
+// The SVG's metadata element follows the root's <title>; the text around it
+// is kept byte for byte, and the element's text (XML-unescaped) is the JSON.
+TEST(StampProvenance, SvgGetsAMetadataElementAfterItsTitle) {
+  Provenance p = TestProvenance();
+  p.command_line.push_back("--label=a<b&c");
+  const std::string head = "<?xml version=\"1.0\"?>\n<svg width=\"10px\">\n<title>T</title>";
+  const std::string tail = "\n<g/>\n</svg>\n";
+  Result<std::string> out = StampProvenance("plot.SVG", head + tail, p);
+  ASSERT_TRUE(out.ok()) << out.status().ToString();
+  ASSERT_EQ(out->compare(0, head.size(), head), 0);
+  ASSERT_EQ(out->substr(out->size() - tail.size()), tail);
+  const std::string open = "\n<metadata id=\"opl-provenance\">";
+  ASSERT_EQ(out->compare(head.size(), open.size(), open), 0);
+  std::string text = out->substr(head.size() + open.size());
+  text = text.substr(0, text.find("</metadata>"));
+  EXPECT_EQ(text.find('<'), std::string::npos);
+  for (const auto& [from, to] : {std::pair<std::string, std::string>{"&lt;", "<"}, {"&gt;", ">"},
+                                 {"&amp;", "&"}}) {
+    for (size_t at = text.find(from); at != std::string::npos; at = text.find(from, at + 1)) {
+      text.replace(at, from.size(), to);
+    }
+  }
+  EXPECT_EQ(nlohmann::json::parse(text).at("command_line").back(), "--label=a<b&c");
+  // Without a title: right after the root's start tag.
+  Result<std::string> untitled = StampProvenance("p.svg", "<svg a=\"1\"><g/></svg>", p);
+  ASSERT_TRUE(untitled.ok());
+  EXPECT_EQ(untitled->find("<svg a=\"1\">\n<metadata id=\"opl-provenance\">"), 0u);
+  EXPECT_EQ(StampProvenance("p.svg", "<html/>", p).status().message(),
+            "p.svg: not an SVG (no <svg> element)");
+}
+
 TEST(StampProvenance, RefusesAFormatItHasNoPlaceIn) {
   EXPECT_EQ(StampProvenance("board.pdf", "%PDF", TestProvenance()).status().message(),
             "board.pdf: no provenance format for '.pdf' files");

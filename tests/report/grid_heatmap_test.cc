@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <cstdlib>
 #include <fstream>
 #include <limits>
 #include <map>
@@ -15,6 +16,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "io/temp_dir.h"
+#include "opl/core/format.h"
 #include "report/rgb.h"
 
 namespace opl {
@@ -96,7 +98,7 @@ int CountNonWhiteInBorder(const cv::Mat& img, int border) {
 }
 
 cv::Mat RenderOrDie(const GridHeatmap& h) {
-  auto png = RenderGridHeatmapPng(h);
+  auto png = RenderGridHeatmap(h, PlotFormat::kPng);
   EXPECT_TRUE(png.ok()) << png.status().ToString();
   if (!png.ok()) return cv::Mat();
   return Decode(*png);
@@ -105,11 +107,19 @@ cv::Mat RenderOrDie(const GridHeatmap& h) {
 // ---------------------------------------------------------------------------
 // Image and layout
 
+void ExpectInvalidNoise(const GridHeatmap& h) {
+  auto layout = LayoutGridHeatmap(h);
+  ASSERT_FALSE(layout.ok());
+  EXPECT_EQ(layout.status().message(),
+            "GridHeatmap.noise_level: must be finite and >= 0 or NaN (none), got " +
+                FormatNumber(h.noise_level));
+}
+
 TEST(GridHeatmapTest, IsAnRgbPngOfTheLayoutSize) {
   for (int n : {3, 5, 11, 21}) {
     SCOPED_TRACE("n = " + std::to_string(n));
     const GridHeatmap h = MakeHeatmap(n, RadialValues(n, 0.01));
-    auto png = RenderGridHeatmapPng(h);
+    auto png = RenderGridHeatmap(h, PlotFormat::kPng);
     ASSERT_TRUE(png.ok()) << png.status().ToString();
     ASSERT_GE(png->size(), 8u);
     EXPECT_EQ(std::string(png->begin(), png->begin() + 8), "\x89PNG\r\n\x1a\n");
@@ -319,6 +329,73 @@ TEST(GridHeatmapTest, ExplicitScaleMaxSetsTheTopColour) {
   EXPECT_EQ(PixelAt(img, bar2.x + bar2.width / 2, bar2.y - 8), (Rgb{255, 255, 255}));
 }
 
+TEST(GridHeatmapTest, ASharedScaleMakesEqualColoursEqualValues) {
+  // Source A's largest mean is 0.1 mm, source B's 0.4 mm. Alone, A's 0.1
+  // cell is yellow (the top); on the shared scale 0..0.4 it is a quarter of
+  // the way up, and B's 0.1 cell has the very same colour.
+  GridHeatmap a = MakeHeatmap(3, {0.1, 0.05, 0.05, 0.05, 0.02, 0.05, 0.05, 0.05, 0.05});
+  GridHeatmap b = MakeHeatmap(3, {0.4, 0.1, 0.2, 0.2, kNaN, 0.2, 0.2, 0.2, 0.2});
+  cv::Mat img = RenderOrDie(a);
+  auto layout = LayoutGridHeatmap(a);
+  ASSERT_TRUE(layout.ok());
+  EXPECT_EQ(DominantColour(img, layout->CellOfBeam(1)).first, kViridisTop);
+
+  EXPECT_DOUBLE_EQ(SharedScaleMax({a, b}), 0.4);
+  EXPECT_DOUBLE_EQ(SharedScaleMax({MakeHeatmap(3, std::vector<double>(9, kNaN))}), 1.0);
+  a.scale_max = b.scale_max = SharedScaleMax({a, b});
+  a.scale_note = b.scale_note = "one scale for sources A, B";
+  img = RenderOrDie(a);
+  layout = LayoutGridHeatmap(a);
+  ASSERT_TRUE(layout.ok());
+  const Rgb a_cell = DominantColour(img, layout->CellOfBeam(1)).first;
+  EXPECT_EQ(a_cell, ViridisOf(0.1, 0.4));
+  EXPECT_NE(a_cell, kViridisTop);
+  const cv::Mat img_b = RenderOrDie(b);
+  auto layout_b = LayoutGridHeatmap(b);
+  ASSERT_TRUE(layout_b.ok());
+  EXPECT_EQ(DominantColour(img_b, layout_b->CellOfBeam(2)).first, a_cell);
+  EXPECT_EQ(DominantColour(img_b, layout_b->CellOfBeam(1)).first, kViridisTop);
+}
+
+// Pixels of the noise mark's colour (RGB 0,110,70, anti-aliased text) in the
+// rows above the grid.
+int NoiseMarkPixels(const cv::Mat& img, const GridHeatmapLayout& layout) {
+  int count = 0;
+  for (int y = 0; y < layout.grid.y; ++y) {
+    for (int x = 0; x < img.cols; ++x) {
+      const Rgb c = PixelAt(img, x, y);
+      if (c.g > c.r + 40 && c.g > c.b + 15) ++count;  // green, not grey or black
+    }
+  }
+  return count;
+}
+
+TEST(GridHeatmapTest, AMapOfNoiseSaysSo) {
+  GridHeatmap h = MakeHeatmap(3, {0.011, 0.012, 0.009, kNaN, 0.015, 0.01, 0.012, 0.013, 0.014});
+  h.value_unit = "mm";
+  auto plain = LayoutGridHeatmap(h);
+  ASSERT_TRUE(plain.ok());
+  EXPECT_FALSE(plain->all_at_noise_level);  // no noise level given
+  h.noise_level = 0.02;
+  auto noisy = LayoutGridHeatmap(h);
+  ASSERT_TRUE(noisy.ok());
+  EXPECT_TRUE(noisy->all_at_noise_level);
+  EXPECT_GT(noisy->grid.y, plain->grid.y + 10);  // a header line more
+  const cv::Mat img = RenderOrDie(h);
+  EXPECT_GT(NoiseMarkPixels(img, *noisy), 100);
+  // One beam above the noise level: no mark.
+  h.values[4] = 0.021;
+  auto signal = LayoutGridHeatmap(h);
+  ASSERT_TRUE(signal.ok());
+  EXPECT_FALSE(signal->all_at_noise_level);
+  EXPECT_EQ(NoiseMarkPixels(RenderOrDie(h), *signal), 0);
+  // Exactly at the level counts as noise; so does a map of zeros.
+  h.values[4] = 0.02;
+  EXPECT_TRUE(LayoutGridHeatmap(h)->all_at_noise_level);
+  h.noise_level = -1;
+  ExpectInvalidNoise(h);
+}
+
 TEST(GridHeatmapTest, ColourBarRunsFromBottomToTopColour) {
   const GridHeatmap h = MakeHeatmap(11, RadialValues(11, 0.01));
   const cv::Mat img = RenderOrDie(h);
@@ -362,8 +439,8 @@ TEST(GridHeatmapTest, CellTextContrastsWithItsFill) {
 
 TEST(GridHeatmapTest, RenderingIsDeterministic) {
   const GridHeatmap h = MakeHeatmap(11, RadialValues(11, 0.003));
-  auto a = RenderGridHeatmapPng(h);
-  auto b = RenderGridHeatmapPng(h);
+  auto a = RenderGridHeatmap(h, PlotFormat::kPng);
+  auto b = RenderGridHeatmap(h, PlotFormat::kPng);
   ASSERT_TRUE(a.ok() && b.ok());
   EXPECT_EQ(*a, *b);
 }
@@ -388,7 +465,7 @@ TEST(GridHeatmapTest, ExtremeValuesAndLongTextsStayInsideABoundedImage) {
 // Errors
 
 void ExpectInvalid(const GridHeatmap& h, const std::string& message) {
-  auto png = RenderGridHeatmapPng(h);
+  auto png = RenderGridHeatmap(h, PlotFormat::kPng);
   ASSERT_FALSE(png.ok());
   EXPECT_EQ(png.status().code(), StatusCode::kInvalidArgument);
   EXPECT_EQ(png.status().message(), message);
@@ -444,8 +521,8 @@ TEST(GridHeatmapTest, WritesThePngBytes) {
   TempDir dir;
   const GridHeatmap h = MakeHeatmap(11, RadialValues(11, 0.003));
   const std::string path = dir.File("source_a_heatmap.png");
-  ASSERT_TRUE(WriteGridHeatmapPng(h, path).ok());
-  auto png = RenderGridHeatmapPng(h);
+  ASSERT_TRUE(WriteGridHeatmap(h, path).ok());
+  auto png = RenderGridHeatmap(h, PlotFormat::kPng);
   ASSERT_TRUE(png.ok());
   EXPECT_EQ(ReadAll(path), std::string(png->begin(), png->end()));
   EXPECT_EQ(dir.Entries(), std::vector<std::string>{"source_a_heatmap.png"});  // no temp left
@@ -457,12 +534,12 @@ TEST(GridHeatmapTest, InvalidInputWritesNothingAndKeepsAnOldFile) {
   GridHeatmap h = MakeHeatmap(11, RadialValues(11, 0.003));
   h.values[7] = -1;
   const std::string path = dir.File("heatmap.png");
-  Status s = WriteGridHeatmapPng(h, path);
+  Status s = WriteGridHeatmap(h, path);
   EXPECT_EQ(s.code(), StatusCode::kInvalidArgument);
   EXPECT_TRUE(dir.Entries().empty());
 
   dir.Write("heatmap.png", "old");
-  s = WriteGridHeatmapPng(h, path);
+  s = WriteGridHeatmap(h, path);
   EXPECT_EQ(s.code(), StatusCode::kInvalidArgument);
   EXPECT_EQ(ReadAll(path), "old");
   EXPECT_EQ(dir.Entries(), std::vector<std::string>{"heatmap.png"});
@@ -471,10 +548,29 @@ TEST(GridHeatmapTest, InvalidInputWritesNothingAndKeepsAnOldFile) {
 TEST(GridHeatmapTest, UnwritablePathIsAnIoError) {
   TempDir dir;
   const Status s =
-      WriteGridHeatmapPng(MakeHeatmap(3, std::vector<double>(9, 0.1)), dir.File("no/such/x.png"));
+      WriteGridHeatmap(MakeHeatmap(3, std::vector<double>(9, 0.1)), dir.File("no/such/x.png"));
   EXPECT_EQ(s.code(), StatusCode::kIoError);
   EXPECT_NE(s.message().find("no/such/x.png"), std::string::npos) << s.message();
   EXPECT_TRUE(dir.Entries().empty());
+}
+
+// Samples for looking at (only with OPL_GRID_HEATMAP_SAMPLES=<dir>): a 3 x 3
+// map with a no-data beam and the noise-level line, and an 11 x 11 map on a
+// fixed scale, in all three formats.
+TEST(GridHeatmapSamples, WriteWhenAsked) {
+  const char* dir = std::getenv("OPL_GRID_HEATMAP_SAMPLES");
+  if (dir == nullptr) GTEST_SKIP() << "set OPL_GRID_HEATMAP_SAMPLES=<dir> to write samples";
+  GridHeatmap noise = MakeHeatmap(3, {0.011, 0.012, 0.009, kNaN, 0.015, 0.01, 0.012, 0.013, 0.014});
+  noise.noise_level = 0.02;
+  noise.value_unit = "mm";
+  GridHeatmap fixed = MakeHeatmap(11, RadialValues(11, 0.006));
+  fixed.values[16] = kNaN;
+  fixed.scale_max = 0.04;
+  fixed.scale_note = "one scale for sources A, B";
+  for (const char* ext : {"png", "svg", "pdf"}) {
+    ASSERT_TRUE(WriteGridHeatmap(noise, std::string(dir) + "/noise_3x3." + ext).ok());
+    ASSERT_TRUE(WriteGridHeatmap(fixed, std::string(dir) + "/fixed_11x11." + ext).ok());
+  }
 }
 
 }  // namespace

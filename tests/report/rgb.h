@@ -11,6 +11,7 @@ namespace opl::test {
 struct Rgb {
   int r, g, b;
   bool operator==(const Rgb& o) const { return r == o.r && g == o.g && b == o.b; }
+  bool operator!=(const Rgb& o) const { return !(*this == o); }
 };
 
 inline std::ostream& operator<<(std::ostream& os, const Rgb& c) {

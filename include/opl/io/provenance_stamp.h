@@ -12,8 +12,12 @@
 //                    "Creation Time" and "opl:provenance" (the JSON object)
 //   .jpg .jpeg       COM segments (the JSON object) after the leading APPn
 //                    segments (JFIF, EXIF)
+//   .svg             a <metadata id="opl-provenance"> element holding the JSON
+//                    object (XML-escaped), first child of the root <svg>
+//                    (after its <title>)
 //   .pdf             refused here: a PDF carries it in its metadata, set when
-//                    the PDF is drawn (report/board_print.h)
+//                    the PDF is drawn (report/board_print.h,
+//                    report/plot_format.h PlotMetadata)
 //
 // Another extension is refused: InvalidArgument "<path>: no provenance
 // format for '.ext' files".
@@ -31,7 +35,7 @@ namespace opl {
 // `contents` of the file `path` (its extension, case-insensitive, picks the
 // format) with `provenance` written in. Errors name `path`: a JSON text whose
 // root is not an object, a PLY without a "format" line, bytes that are not a
-// PNG.
+// PNG, an SVG without an <svg> element.
 Result<std::string> StampProvenance(const std::string& path, const std::string& contents,
                                     const Provenance& provenance);
 

@@ -114,7 +114,7 @@ struct VerifyReport {
   // the lengths' span each side of L_cal so that the bars do not hide each
   // other, and the line E = 0 (dashed). With a bar column a second panel
   // shows it alone on its own scale (its E and U(E) may be far smaller).
-  // RenderLinePlotPng (report/line_plot.h) draws it.
+  // RenderLinePlot (report/line_plot.h) draws it.
   LinePlot ToPlot(const std::string& scene_name) const;
 };
 

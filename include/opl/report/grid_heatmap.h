@@ -1,4 +1,5 @@
-// Heat map of one value per beam over a source's n x n grid, as a PNG image.
+// Heat map of one value per beam over a source's n x n grid, as a PNG, SVG or
+// PDF figure (report/plot_format.h), drawn with cairo.
 //
 // A calibration report shows, per source, the mean point-to-ray distance of
 // every beam's samples as a heat map: it is how a user judges a calibration
@@ -18,17 +19,25 @@
 //   - a colour bar at the right has ticks and `value_label` (with the unit);
 //   - row and column indices, a +Y / +Z axis glyph and a line stating the
 //     orientation and the numbering rule are drawn around the grid;
-//   - `title` and `subtitle` head the image.
+//   - `title` and `subtitle` head the image; when every beam with data is at
+//     or below `noise_level`, a line under them says so in bold green:
+//     "All beams at the noise level (<= 0.02 mm)" (a map of noise has no
+//     pattern to read, and its colours span only the noise);
+//   - the colour scale runs from 0 to the largest value, or to `scale_max`
+//     when set: maps that share one `scale_max` compare by colour (opl_calibrate
+//     gives all sources of a run one scale).
 //
 // Cells are square, 64 px for n >= 9 and larger for small n (160 px for
 // n = 3). docs/report.md shows and explains the image.
 #pragma once
 
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include "opl/core/status.h"
+#include "opl/report/plot_format.h"
 
 namespace opl {
 
@@ -46,7 +55,20 @@ struct GridHeatmap {
   // is 0). Values above it take the top colour and the colour bar gets a
   // triangle at its top end; every cell still prints its own value.
   std::optional<double> scale_max;
+  // The value's noise level (same unit), NaN = none: when every finite value
+  // is <= noise_level the image says "All beams at the noise level
+  // (<= <noise_level> <value_unit>)". Must be finite and >= 0 when set.
+  double noise_level = std::numeric_limits<double>::quiet_NaN();
+  std::string value_unit{};  // e.g. "mm", for that line
+  // Why the scale ends where it does, shown after the range in the colour
+  // note, e.g. "one scale for sources A, B"; optional.
+  std::string scale_note{};
 };
+
+// The largest finite value over all `heatmaps` (1 if none is > 0): the
+// scale_max that makes them share one colour scale, so that equal colours
+// mean equal values from one map to the next.
+double SharedScaleMax(const std::vector<GridHeatmap>& heatmaps);
 
 // Where things are in the rendered image, in pixels (x right, y down, origin
 // at the top-left corner of the image).
@@ -65,6 +87,7 @@ struct GridHeatmapLayout {
   PixelRect grid;         // all n x n cells
   PixelRect colour_bar;   // the gradient: bottom row = 0, top row = scale_max
   double scale_max = 0;   // the upper end of the colour scale actually used
+  bool all_at_noise_level = false;  // the noise-level line is shown
 
   // The cell of beam `beam_id` (1 .. n*n): row (id-1)/n from the top, col
   // (id-1)%n from the RIGHT. Cells are separated by 1 px white lines that
@@ -81,15 +104,22 @@ struct GridHeatmapLayout {
 //   "GridHeatmap.title: must not be empty"
 //   "GridHeatmap.value_label: must not be empty (it names the value and its unit)"
 //   "GridHeatmap.scale_max: must be finite and > 0, got 0"
+//   "GridHeatmap.noise_level: must be finite and >= 0 or NaN (none), got -1"
 Result<GridHeatmapLayout> LayoutGridHeatmap(const GridHeatmap& heatmap);
 
-// Renders the heat map as an 8-bit RGB PNG (the bytes of the file). Errors as
-// LayoutGridHeatmap; IoError "grid heat map: cannot render the PNG: ..." if
-// OpenCV fails (e.g. out of memory). Never throws.
-Result<std::vector<unsigned char>> RenderGridHeatmapPng(const GridHeatmap& heatmap);
+// Renders the heat map in `format` (the bytes of the file; PNG: 8-bit RGB,
+// one pixel per layout pixel; `metadata` goes into a PDF's information
+// dictionary). Errors as LayoutGridHeatmap; IoError "grid heat map: cannot
+// render the png: ..." if cairo fails (e.g. out of memory). Never throws.
+Result<std::vector<unsigned char>> RenderGridHeatmap(const GridHeatmap& heatmap,
+                                                     PlotFormat format,
+                                                     const PlotMetadata& metadata = {});
 
-// Renders and writes the PNG to `path` atomically (opl/io/atomic_file.h): on
-// any error no file is created and an existing `path` is left as it was.
-Status WriteGridHeatmapPng(const GridHeatmap& heatmap, const std::string& path);
+// Renders in the format `path`'s extension names (.png, .svg, .pdf, any
+// case; another is InvalidArgument naming the path) and writes the file
+// atomically (opl/io/atomic_file.h): on any error no file is created and an
+// existing `path` is left as it was.
+Status WriteGridHeatmap(const GridHeatmap& heatmap, const std::string& path,
+                        const PlotMetadata& metadata = {});
 
 }  // namespace opl

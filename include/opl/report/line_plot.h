@@ -1,16 +1,19 @@
-// Line plots for design sweeps (e.g. std of L against spot noise), as PNG.
+// Line plots for design sweeps (e.g. std of L against spot noise), as PNG,
+// SVG or PDF (report/plot_format.h).
 //
 // A figure is 1..4 panels side by side under an optional figure title. Each
 // panel has its own axes (linear or log), title, axis labels (with units) and
 // series. The look follows the other report images (grid_heatmap.h): white
-// background, OpenCV Hershey fonts, anti-aliased drawing, PNG written
-// atomically. Per panel:
+// background, DejaVu Sans text, anti-aliased drawing with cairo (the same
+// drawing for every format), files written atomically. Per panel:
 //
 //   - a black frame around the plot area, ticks outward, tick values at 1, 2
 //     or 5 times a power of ten (NiceTicks), light grey grid lines at them;
-//     log axes: decades, plus 2 and 5 (or every 1..9) when the range is short
-//     (NiceLogTicks), with lighter unlabelled grid lines at 2..9 x 10^k;
-//   - tick labels that never overlap (fewer ticks are used until they fit),
+//     log axes: decades, plus 2 and 5 (or every 1..9, so that at least three
+//     values are labelled: 10 to 45 reads 10, 20, 30, 40) when the range is
+//     short (NiceLogTicks), with lighter unlabelled grid lines at 2..9 x 10^k;
+//   - tick labels that never overlap (fewer ticks are used until they fit,
+//     measured with the font's own glyph advances),
 //     written as "0.3", "2.5", "1e-05"-free text (exact decimal forms such as
 //     "0.00002" down to 1e-4, "2e-5" below);
 //   - x label centred under the axis, y label rotated 90 degrees (reads
@@ -38,6 +41,7 @@
 
 #include "opl/core/status.h"
 #include "opl/report/grid_heatmap.h"  // PixelRect
+#include "opl/report/plot_format.h"
 
 namespace opl {
 
@@ -85,11 +89,16 @@ struct LogTicks {
 //   - spans of 2 decades or more: the decades 10^k, every m-th (m = 1, 2, 3,
 //     ...) if there are more than max_ticks; minor: the other decades and, up
 //     to 8 decades, 2..9 x 10^k;
-//   - shorter spans: 1, 2 and 5 x 10^k if that gives <= max_ticks and >= 2
-//     labels, else the decades if there are >= 2, else 1..9 x 10^k if that
-//     fits, else NiceTicks(lo, hi, max_ticks); minor: the rest of 1..9 x 10^k.
+//   - shorter spans: enough labels to read the axis: the first of
+//       1, 2 and 5 x 10^k   with 3 .. max_ticks labels,
+//       1 .. 9 x 10^k       with 3 .. max_ticks labels,
+//       1, 2 and 5 x 10^k   with 2 .. max_ticks labels,
+//       the decades         with 2 .. max_ticks labels,
+//       1 .. 9 x 10^k       with 2 .. max_ticks labels,
+//     else NiceTicks(lo, hi, max_ticks); minor: the rest of 1..9 x 10^k.
 // E.g. (1, 1000, 10) -> major {1, 10, 100, 1000}; (0.5, 30, 10) -> major
-// {0.5, 1, 2, 5, 10, 20}. Empty if the arguments are invalid.
+// {0.5, 1, 2, 5, 10, 20}; (9.3, 48, 10) -> {10, 20, 30, 40} (1, 2, 5 would
+// label only 10 and 20). Empty if the arguments are invalid.
 LogTicks NiceLogTicks(double lo, double hi, int max_ticks);
 
 // The text of a tick label: exact decimals ("0.3", "-2.5", "1500", "0.0002"),
@@ -137,13 +146,21 @@ struct LinePlotLayout {
 //   "LinePlot.panels[0] \"std of L\": no finite points to plot"
 Result<LinePlotLayout> LayoutLinePlot(const LinePlot& plot);
 
-// Renders the figure as an 8-bit RGB PNG (the file's bytes). Errors as
-// LayoutLinePlot; IoError "line plot: cannot render the PNG: ..." if OpenCV
-// fails. Never throws.
+// Renders the figure in `format` (the file's bytes): PNG 8-bit RGB, one
+// pixel per layout pixel; SVG and PDF the same drawing as vectors
+// (report/plot_format.h; `metadata` goes into the PDF's information
+// dictionary). Errors as LayoutLinePlot; IoError "line plot: cannot render
+// the png: ..." if cairo fails (out of memory). Never throws.
+Result<std::vector<unsigned char>> RenderLinePlot(const LinePlot& plot, PlotFormat format,
+                                                  const PlotMetadata& metadata = {});
+// RenderLinePlot(plot, PlotFormat::kPng).
 Result<std::vector<unsigned char>> RenderLinePlotPng(const LinePlot& plot);
 
-// Renders and writes the PNG to `path` atomically (opl/io/atomic_file.h): on
-// any error no file is created and an existing `path` is left as it was.
-Status WriteLinePlotPng(const LinePlot& plot, const std::string& path);
+// Renders in the format `path`'s extension names (.png, .svg, .pdf, any
+// case; another is InvalidArgument naming the path) and writes the file
+// atomically (opl/io/atomic_file.h): on any error no file is created and an
+// existing `path` is left as it was.
+Status WriteLinePlot(const LinePlot& plot, const std::string& path,
+                     const PlotMetadata& metadata = {});
 
 }  // namespace opl

@@ -7,7 +7,7 @@
 //   MonteCarloOptions mc;  mc.iterations = 1000;
 //   Result<DesignSweep> sweep = RunDesignSweep(*design, *p, *values, mc);
 //   WriteFileAtomically("sweep.csv", sweep->ToCsv());
-//   WriteLinePlotPng(sweep->ToPlot(), "sweep.png");
+//   WriteLinePlot(sweep->ToPlot(), "sweep.png");  // or .svg, .pdf
 //
 // Every value gives a design (ApplySweepValue: the base design with one
 // parameter changed, everything else kept) and a measurement Monte Carlo of it

@@ -15,7 +15,7 @@
 // The work is done by opl::SimulateSpots, opl::MakeCalibrationScreens,
 // opl::SimulateSlices, opl::ExactCalibration (include/opl/sim/) and
 // opl::RunMeasurementMonteCarlo, opl::MonteCarloFigure, opl::RunDesignSweep
-// (include/opl/uncertainty/) and opl::RenderLinePlotPng (include/opl/report/)
+// (include/opl/uncertainty/) and opl::RenderLinePlot (include/opl/report/)
 // and opl::SceneRenderer
 // (include/opl/lab/render_scene.h); this file
 // parses options, reads the design, writes the output atomically and maps
@@ -48,6 +48,7 @@
 #include "opl/sim/simulate_slices.h"
 #include "opl/sim/simulate_spots.h"
 #include "opl/report/line_plot.h"
+#include "opl/report/plot_format.h"
 #include "opl/uncertainty/calibration_monte_carlo.h"
 #include "opl/uncertainty/design_sweep.h"
 #include "opl/uncertainty/monte_carlo.h"
@@ -243,13 +244,35 @@ std::optional<int> RunWithProgress(Options options, const Run& run, Report* repo
   return std::nullopt;
 }
 
-// --plot must name a PNG (its provenance goes into PNG text chunks).
+// --plot names a .png, .svg or .pdf (report/plot_format.h), checked before
+// any work.
 std::optional<int> CheckPlotPath(const std::string& path) {
-  if (!path.empty() && std::filesystem::path(path).extension() != ".png") {
-    return opl::cli::Fail(kTool, "--plot '" + path + "': the name must end in .png",
-                          opl::cli::kExitUsage);
-  }
+  if (path.empty()) return std::nullopt;
+  opl::Result<opl::PlotFormat> format = opl::PlotFormatFromPath(path);
+  if (!format.ok()) return opl::cli::Fail(kTool, "--plot " + format.status().message(), opl::cli::kExitUsage);
   return std::nullopt;
+}
+
+// Renders `plot` in the format its path names and stages it in `outputs`
+// with the run's provenance (PNG text chunks and SVG metadata are stamped by
+// OutputSet::Add; a PDF carries it in its document metadata). A non-OK
+// result is a failure to render (kExitInternalError) or to stage (a write
+// error), told apart by *render_failed.
+opl::Status StagePlot(const opl::LinePlot& plot, const std::string& path, const opl::Provenance& provenance,
+                      opl::OutputSet* outputs, bool* render_failed) {
+  *render_failed = false;
+  opl::Result<opl::PlotFormat> format = opl::PlotFormatFromPath(path);
+  if (!format.ok()) return format.status();
+  opl::PlotMetadata metadata;
+  metadata.creator = "OPL " + provenance.tool + " " + provenance.version;
+  metadata.subject = opl::FormatProvenanceJson(provenance);
+  opl::Result<std::vector<unsigned char>> bytes = opl::RenderLinePlot(plot, *format, metadata);
+  if (!bytes.ok()) {
+    *render_failed = true;
+    return bytes.status();
+  }
+  const std::string data(bytes->begin(), bytes->end());
+  return *format == opl::PlotFormat::kPdf ? outputs->AddVerbatim(path, data) : outputs->Add(path, data);
 }
 
 int CalibrationMonteCarloCommand(const Args& args, const opl::ModuleDesign& design) {
@@ -328,14 +351,12 @@ int MonteCarloCommand(const Args& args) {
   // (io/output_set.h), before anything is printed; on any error nothing is
   // written and nothing printed.
   if (!args.plot_path.empty()) {
-    Result<std::vector<unsigned char>> png = RenderLinePlotPng(MonteCarloFigure(report));
-    if (!png.ok()) {
-      return cli::Fail(kTool, "plot: " + png.status().message(), cli::kExitInternalError);
-    }
     OutputSet outputs(args.provenance);
-    if (Status st = outputs.Add(args.plot_path, std::string(png->begin(), png->end()));
+    bool render_failed = false;
+    if (Status st = StagePlot(MonteCarloFigure(report), args.plot_path, args.provenance, &outputs, &render_failed);
         !st.ok()) {
-      return cli::FailWrite(kTool, st);
+      return render_failed ? cli::Fail(kTool, "plot: " + st.message(), cli::kExitInternalError)
+                           : cli::FailWrite(kTool, st);
     }
     if (Status st = outputs.Commit(); !st.ok()) return cli::FailWrite(kTool, st);
   }
@@ -377,23 +398,19 @@ int SweepCommand(const Args& args) {
 
   // Both outputs are made before either is written.
   const std::string csv = sweep->ToCsv();
-  std::vector<unsigned char> png;
+  // Both or neither (io/output_set.h).
+  OutputSet outputs(args.provenance);
+  if (Status st = outputs.Add(args.out_path, csv); !st.ok()) return cli::FailWrite(kTool, st);
   if (!args.plot_path.empty()) {
     LinePlot plot = sweep->ToPlot();
     for (PlotPanel& panel : plot.panels) {
       panel.log_x = args.log_x;
       panel.log_y = args.log_y;
     }
-    Result<std::vector<unsigned char>> rendered = RenderLinePlotPng(plot);
-    if (!rendered.ok()) return cli::Fail(kTool, "plot: " + rendered.status().message(), cli::kExitInternalError);
-    png = std::move(*rendered);
-  }
-  // Both or neither (io/output_set.h).
-  OutputSet outputs(args.provenance);
-  if (Status st = outputs.Add(args.out_path, csv); !st.ok()) return cli::FailWrite(kTool, st);
-  if (!args.plot_path.empty()) {
-    if (Status st = outputs.Add(args.plot_path, std::string(png.begin(), png.end())); !st.ok()) {
-      return cli::FailWrite(kTool, st);
+    bool render_failed = false;
+    if (Status st = StagePlot(plot, args.plot_path, args.provenance, &outputs, &render_failed); !st.ok()) {
+      return render_failed ? cli::Fail(kTool, "plot: " + st.message(), cli::kExitInternalError)
+                           : cli::FailWrite(kTool, st);
     }
   }
   if (Status st = outputs.Commit(); !st.ok()) return cli::FailWrite(kTool, st);
@@ -796,13 +813,13 @@ int Run(int argc, char** argv) {
                "with two sources")
       ->needs(mc_json);
   mc->add_option("--plot", args.plot_path,
-                 "PNG figure to write (atomically; written before anything is printed, and\n"
-                 "not at all on an error): per length L (the first three) and for s - 1\n"
+                 "Figure to write, .png, .svg or .pdf (atomically; before anything is printed,\n"
+                 "nothing on an error): per length L (the first three) and for s - 1\n"
                  "(ppm) the histogram of the Monte Carlo values (Freedman-Diaconis bins,\n"
                  "10 to 100), the first-order normal density scaled to counts, and the 95 %\n"
                  "coverage intervals: the Monte Carlo's (JCGM 101 7.7.1) and first order\n"
                  "+-1.96 u (dashed)")
-      ->type_name("FILE.png");
+      ->type_name("FILE.png|svg|pdf");
   const std::string mc_examples =
       "  opl_simulate mc --design examples/staggered_design.json --iterations 5000\n"
       "  opl_simulate mc --design examples/staggered_design.json --iterations 5000 --seed 7 \\\n"
@@ -847,10 +864,11 @@ int Run(int argc, char** argv) {
       ->type_name("LIST");
   sweep->add_option("--out", args.out_path, "Sweep CSV to write (atomically)")->required()->type_name("FILE");
   sweep->add_option("--plot", args.plot_path,
-                    "PNG plot to write (atomically, with the CSV or not at all): Monte Carlo\n"
-                    "markers with error bars, first order (solid line with markers), Cramer-Rao\n"
-                    "bound (dashed over it); layout: markers at 1, 2, ... named in the x label")
-      ->type_name("FILE.png");
+                    "Plot to write, .png, .svg or .pdf (atomically, with the CSV or not at all):\n"
+                    "Monte Carlo markers with error bars, first order (solid line with markers),\n"
+                    "Cramer-Rao bound (dashed over it); layout: markers at 1, 2, ... named in\n"
+                    "the x label")
+      ->type_name("FILE.png|svg|pdf");
   sweep->add_flag("--log-x", args.log_x, "Logarithmic parameter axis in the plot");
   sweep->add_flag("--log-y", args.log_y,
                   "Logarithmic uncertainty axes in the plot (a power law is a straight line)");

@@ -3,6 +3,8 @@
 // with its figure (--plot) and its samples (--samples).
 #include <algorithm>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <string>
 #include <vector>
 
@@ -162,6 +164,28 @@ TEST(SimulateMcCli, PlotAndSamples) {
   EXPECT_FALSE(p["lengths"][0].contains("samples_mm"));
 }
 
+// The figure as SVG and PDF: the format follows the name; the SVG carries
+// the run's provenance and the PDF its creator.
+TEST(SimulateMcCli, PlotAsSvgAndPdf) {
+  testing_support::TempDir dir;
+  const std::string base = "mc --design " + kDesign + " --iterations 60 --seed 5 --threads 2 --plot ";
+  RunResult r = Simulate(base + dir.File("mc.svg"));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  std::ifstream svg_in(dir.File("mc.svg"));
+  const std::string svg((std::istreambuf_iterator<char>(svg_in)), std::istreambuf_iterator<char>());
+  EXPECT_EQ(svg.rfind("<?xml", 0), 0u);
+  EXPECT_THAT(svg, HasSubstr("<svg"));
+  EXPECT_THAT(svg, HasSubstr("opl-provenance"));
+  EXPECT_THAT(svg, HasSubstr("opl_simulate"));
+  r = Simulate(base + dir.File("mc.PDF"));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  std::ifstream pdf_in(dir.File("mc.PDF"), std::ios::binary);
+  const std::string pdf((std::istreambuf_iterator<char>(pdf_in)), std::istreambuf_iterator<char>());
+  EXPECT_EQ(pdf.rfind("%PDF-", 0), 0u);
+  // cairo writes the document info as UTF-16BE hex: "opl_simulate" in the Creator.
+  EXPECT_THAT(pdf, HasSubstr("/Creator <FEFF004F0050004C0020006F0070006C005F00730069006D0075006C006100740065"));
+}
+
 // A bad --plot: the documented exit code, one line on stderr, nothing on
 // stdout and no file.
 TEST(SimulateMcCli, PlotErrorsWriteNothing) {
@@ -171,7 +195,8 @@ TEST(SimulateMcCli, PlotErrorsWriteNothing) {
   ExpectFailure(Simulate(base + " --json --plot " + dir.File("missing/mc.png")), 5,
                 "opl_simulate: ");
   ExpectFailure(Simulate(base + " --plot " + dir.File("mc.txt")), 2,
-                "opl_simulate: --plot '" + dir.File("mc.txt") + "': the name must end in .png");
+                "opl_simulate: --plot " + dir.File("mc.txt") +
+                    ": a figure must be named .png, .svg or .pdf (got '.txt')");
   ExpectFailure(Simulate(base + " --samples"), 2, "opl_simulate: ");  // --samples needs --json
   ExpectFailure(Simulate(base + " --calibration --plot " + dir.File("mc.png")), 2,
                 "opl_simulate: --plot and --samples apply to a measurement, not to --calibration");

@@ -81,7 +81,7 @@ TEST(SimulateSweepCli, LayoutSweep) {
   const RunResult r = Simulate("sweep --design " + kDesign +
                                " --param layout --values side_by_side,staggered --iterations 30"
                                " --threads 2 --out " + dir.File("l.csv") + " --plot " +
-                               dir.File("l.png"));
+                               dir.File("l.pdf"));
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_THAT(r.out, StartsWith("layout "));
   EXPECT_THAT(r.out, HasSubstr("\nside_by_side     A-B "));
@@ -90,7 +90,16 @@ TEST(SimulateSweepCli, LayoutSweep) {
   ASSERT_EQ(lines.size(), 3u);
   EXPECT_EQ(lines[1].substr(0, 13), "layout,0,A,B,");
   EXPECT_EQ(lines[2].substr(0, 14), "layout,45,A,B,");
-  EXPECT_FALSE(cv::imread(dir.File("l.png"), cv::IMREAD_COLOR).empty());
+  // A PDF, as the name asks, with the tool named in its metadata (cairo
+  // writes the document info as UTF-16BE hex: "OPL opl_simulate").
+  const std::vector<std::string> pdf = Lines(dir.File("l.pdf"));
+  ASSERT_FALSE(pdf.empty());
+  EXPECT_EQ(pdf[0].rfind("%PDF-", 0), 0u);
+  bool names_tool = false;
+  for (const std::string& line : pdf) {
+    names_tool |= line.find("/Creator <FEFF004F0050004C0020006F0070006C005F00730069006D0075006C006100740065") != std::string::npos;
+  }
+  EXPECT_TRUE(names_tool);
 }
 
 TEST(SimulateSweepCli, Errors) {
@@ -109,7 +118,8 @@ TEST(SimulateSweepCli, Errors) {
   r = Simulate(base + " --param noise_mm --values 0.1 --out " + dir.File("s.csv") + " --plot " +
                dir.File("s.jpg"));
   EXPECT_EQ(r.exit_code, 2);
-  EXPECT_EQ(r.err, "opl_simulate: --plot '" + dir.File("s.jpg") + "': the name must end in .png\n");
+  EXPECT_EQ(r.err, "opl_simulate: --plot " + dir.File("s.jpg") +
+                       ": a figure must be named .png, .svg or .pdf (got '.jpg')\n");
   r = Simulate(base + " --param noise_mm --values 0.1 --weighting best" + out);
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_EQ(r.out, "");

@@ -128,7 +128,9 @@ int WriteOutputs(const Args& args, const opl::ModuleCalibrationResult& result,
 
   // Everything is computed (and the heat maps rendered) before the first
   // write. The heat maps share one colour scale, so that the sources compare
-  // by colour: --heatmap-max-mm, or the largest value of them all.
+  // by colour: --heatmap-max-mm, or the largest value of them all. --out is
+  // staged first, so that a bad --out fails before the report folder exists.
+  if (Status st = outputs.Add(args.out_path, *json); !st.ok()) return cli::FailWrite(kTool, st);
   if (!args.report_dir.empty()) {
     std::vector<GridHeatmap> heatmaps;
     std::string names;
@@ -159,12 +161,23 @@ int WriteOutputs(const Args& args, const opl::ModuleCalibrationResult& result,
                           std::move(*bytes));
     }
     std::error_code ec;
+    const bool dir_existed = std::filesystem::exists(args.report_dir, ec);
     std::filesystem::create_directories(args.report_dir, ec);
     if (ec) {
       return cli::Fail(kTool, args.report_dir + ": cannot create the report folder: " + ec.message(),
                        cli::kExitWriteFailed);
     }
     const std::filesystem::path dir(args.report_dir);
+    // A folder this run created is removed again when the run writes nothing
+    // (std::filesystem::remove leaves a folder that is not empty).
+    struct RemoveIfCreated {
+      std::filesystem::path dir;
+      bool keep;
+      ~RemoveIfCreated() {
+        std::error_code ignored;
+        if (!keep) std::filesystem::remove(dir, ignored);
+      }
+    } cleanup{dir, dir_existed};
     for (const auto& [name, text] :
          {std::pair<std::string, std::string>{"beams.csv", BeamQualityCsv(result)},
           {"samples.csv", SampleResidualsCsv(result)}}) {
@@ -179,8 +192,11 @@ int WriteOutputs(const Args& args, const opl::ModuleCalibrationResult& result,
                                                     : outputs.Add((dir / name).string(), text);
       if (!st.ok()) return cli::FailWrite(kTool, st);
     }
+    // All of them or none (io/output_set.h).
+    if (Status st = outputs.Commit(); !st.ok()) return cli::FailWrite(kTool, st);
+    cleanup.keep = true;
+    return cli::PrintToStdout(kTool, text_before + CalibrationSummaryText(result));
   }
-  if (Status st = outputs.Add(args.out_path, *json); !st.ok()) return cli::FailWrite(kTool, st);
   // All of them or none (io/output_set.h).
   if (Status st = outputs.Commit(); !st.ok()) return cli::FailWrite(kTool, st);
   return cli::PrintToStdout(kTool, text_before + CalibrationSummaryText(result));

@@ -295,6 +295,12 @@ TEST_F(CalibrateCli, BadSessionsAreRefusedAndNothingIsWritten) {
   ExpectRefused(Calibrate("--spots " + dir_.File("bad.csv") + out), 3, "bad.csv:2: field 'z'");
   // Unknown --loss: usage.
   ExpectRefused(Calibrate("--spots " + slices + out + " --loss bisquare"), 2, "--loss");
+  // A --out that cannot be written (issue 19 item 2): exit 5, and the report
+  // folder is neither filled nor left behind (it is created only after --out
+  // is staged, and removed again when the run writes nothing).
+  ExpectRefused(Calibrate("--spots " + slices + " --report " + dir_.File("report") + " --out " +
+                          dir_.File("missing/module.json")),
+                5, "missing/module.json: cannot write");
   // With --allow-extra-columns the same file calibrates.
   const RunResult ok = Calibrate("--spots " + dir_.File("extra.csv") + out + " --allow-extra-columns");
   EXPECT_EQ(ok.exit_code, 0) << ok.err;

@@ -2,6 +2,8 @@
 
 #include <cmath>
 #include <map>
+#include <string>
+#include <utility>
 
 #include "opl/core/format.h"
 #include "opl/core/message_text.h"
@@ -78,8 +80,25 @@ Result<ModuleCalibrationResult> CalibrateModule(const std::vector<Spot>& spots,
   std::map<std::string, std::vector<CalibrationSample>> by_source;
   std::map<std::string, int> max_id;
   std::map<int, size_t> slice_owner;  // slice -> first spot index
+  std::map<std::pair<int, int>, size_t> first_of_beam;  // (slice, beam) -> spot index
+  std::map<std::string, std::string> max_id_where;      // where the largest id was read
   for (size_t i = 0; i < spots.size(); ++i) {
     const Spot& s = spots[i];
+    const int beam_id = s.observation.beam_id;
+    if (beam_id < 1) {
+      return Status::InvalidArgument(s.where + ": beam id " + std::to_string(beam_id) +
+                                     " of source " + QuoteForMessage(s.source) +
+                                     " must be >= 1");
+    }
+    if (options.beams_per_side &&
+        beam_id > *options.beams_per_side * *options.beams_per_side) {
+      return Status::InvalidArgument(
+          s.where + ": beam id " + std::to_string(beam_id) + " of source " +
+          QuoteForMessage(s.source) + " is outside 1.." +
+          std::to_string(*options.beams_per_side * *options.beams_per_side) + " (a grid of " +
+          std::to_string(*options.beams_per_side) + " x " +
+          std::to_string(*options.beams_per_side) + " beams)");
+    }
     auto [owner, inserted] = slice_owner.emplace(slices[i], i);
     if (!inserted && spots[owner->second].source != s.source) {
       const Spot& first = spots[owner->second];
@@ -87,6 +106,13 @@ Result<ModuleCalibrationResult> CalibrateModule(const std::vector<Spot>& spots,
           s.where + ": slice " + std::to_string(slices[i]) + " holds spots of source '" +
           s.source + "' and of source " + QuoteForMessage(first.source) + " (" + first.where +
           "): a slice is one grid at one screen position");
+    }
+    if (auto [first_spot, new_beam] = first_of_beam.emplace(std::make_pair(slices[i], beam_id), i);
+        !new_beam) {
+      return Status::InvalidArgument(
+          s.where + ": a second spot of beam " + std::to_string(beam_id) + " of source " +
+          QuoteForMessage(s.source) + " in slice " + std::to_string(slices[i]) + " (the first is " +
+          spots[first_spot->second].where + "): a slice holds each beam's spot once");
     }
     if (!by_source.count(s.source)) order.push_back(s.source);
     CalibrationSample sample;
@@ -96,7 +122,10 @@ Result<ModuleCalibrationResult> CalibrateModule(const std::vector<Spot>& spots,
     if (s.observation.cov_in_scene) sample.cov_mm2 = scale * scale * *s.observation.cov_in_scene;
     by_source[s.source].push_back(sample);
     int& m = max_id[s.source];
-    m = std::max(m, sample.beam_id);
+    if (sample.beam_id > m) {
+      m = sample.beam_id;
+      max_id_where[s.source] = s.where;
+    }
   }
   ModuleCalibrationResult result;
   for (const std::string& name : order) {
@@ -107,8 +136,10 @@ Result<ModuleCalibrationResult> CalibrateModule(const std::vector<Spot>& spots,
       // Bounded: n^2 never overflows, and an id beyond the largest grid is refused.
       while (n < kMaxBeamsPerSide && n * n < max_id[name]) n += 2;
       if (n * n < max_id[name]) {
+        const std::string& where = max_id_where[name];
         return Status::InvalidArgument(
-            "source " + QuoteForMessage(name) + ": beam id " + std::to_string(max_id[name]) +
+            (where.empty() ? std::string() : where + ": ") + "source " + QuoteForMessage(name) +
+            ": beam id " + std::to_string(max_id[name]) +
             " is beyond the largest grid (" + std::to_string(kMaxBeamsPerSide) + " x " +
             std::to_string(kMaxBeamsPerSide) + " = " +
             std::to_string(kMaxBeamsPerSide * kMaxBeamsPerSide) + " beams)");

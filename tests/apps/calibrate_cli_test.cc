@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <filesystem>
 #include <set>
+#include <string>
+#include <vector>
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -301,6 +303,26 @@ TEST_F(CalibrateCli, BadSessionsAreRefusedAndNothingIsWritten) {
   ExpectRefused(Calibrate("--spots " + slices + " --report " + dir_.File("report") + " --out " +
                           dir_.File("missing/module.json")),
                 5, "missing/module.json: cannot write");
+  // A disk that fills under --report (issue 19 item 2): every file is limited
+  // to 16 KB, which the calibration JSON and the heat maps each exceed. The
+  // run fails with exit 5 naming what it could not write, and leaves neither
+  // the calibration nor the report folder (ExpectRefused checks both).
+  {
+    const auto entries = [&] {
+      std::vector<std::string> names;
+      for (const auto& e : std::filesystem::directory_iterator(dir_.path())) {
+        names.push_back(e.path().filename().string());
+      }
+      std::sort(names.begin(), names.end());
+      return names;
+    };
+    const std::vector<std::string> before = entries();
+    const RunResult full = cli_test::RunWithFileSizeLimit(
+        OPL_CALIBRATE_EXE, "--spots " + slices + out, 16 * 1024);
+    ExpectRefused(full, 5, "cannot write");
+    EXPECT_THAT(full.err, HasSubstr("File too large")) << full.err;
+    EXPECT_EQ(entries(), before);  // no staged temporary left behind either
+  }
   // With --allow-extra-columns the same file calibrates.
   const RunResult ok = Calibrate("--spots " + dir_.File("extra.csv") + out + " --allow-extra-columns");
   EXPECT_EQ(ok.exit_code, 0) << ok.err;

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <chrono>
 #include <filesystem>
+#include <fstream>
 #include <string>
 
 #include <gmock/gmock.h>
@@ -48,6 +49,17 @@ std::string ReplaceFirst(std::string text, const std::string& from, const std::s
   EXPECT_NE(at, std::string::npos) << from;
   if (at != std::string::npos) text.replace(at, from.size(), to);
   return text;
+}
+
+// The 1-based line of `path` (read as is) that starts with `prefix`; 0 if none.
+int LineOf(const std::string& path, const std::string& prefix) {
+  std::ifstream in(path);
+  std::string line;
+  for (int number = 1; std::getline(in, line); ++number) {
+    if (line.rfind(prefix, 0) == 0) return number;
+  }
+  ADD_FAILURE() << path << " has no line starting " << prefix;
+  return 0;
 }
 
 // A folder with a calibration (cal.json), its spots (spots.csv), a
@@ -146,8 +158,33 @@ TEST_F(HostileInput, HugeGridsAreRefusedEverywhere) {
   dir_.Write("big_id.csv",
              ReplaceFirst(ReadAll(F("slices.csv")), "\nA,1,", "\nA,2147483647,"));
   CalibrateRefused("--spots " + F("big_id.csv") + " --out " + F("out.json"), 3,
-                   {"beam id 2147483647 is beyond the largest grid (201 x 201 = 40401 beams)"});
+                   {F("big_id.csv") + ":" + std::to_string(LineOf(F("big_id.csv"), "A,2147483647,")) +
+                        ": source 'A': beam id 2147483647 is beyond the largest grid (201 x 201 = "
+                        "40401 beams)"});
+  // A beam id beyond the grid given, and one beam twice in a slice: file:line.
+  CalibrateRefused("--spots " + F("big_id.csv") + " --out " + F("out.json") +
+                       " --beams-per-side 11",
+                   3,
+                   {F("big_id.csv") + ":" + std::to_string(LineOf(F("big_id.csv"), "A,2147483647,")) +
+                        ": beam id 2147483647 of source 'A' is outside 1..121 (a grid of 11 x 11 "
+                        "beams)"});
+  // The first spot of source A written twice, on consecutive lines.
+  {
+    std::string text = ReadAll(F("slices.csv"));
+    const size_t begin = text.find("\nA,") + 1;
+    const size_t end = text.find('\n', begin) + 1;
+    const std::string row = text.substr(begin, end - begin);
+    text.insert(end, row);
+    dir_.Write("twice.csv", text);
+  }
+  const int first = LineOf(F("twice.csv"), "A,");
+  CalibrateRefused("--spots " + F("twice.csv") + " --out " + F("out.json"), 3,
+                   {F("twice.csv") + ":" + std::to_string(first + 1) + ": a second spot of beam ",
+                    " of source 'A' in slice ",
+                    "(the first is " + F("twice.csv") + ":" + std::to_string(first) +
+                        "): a slice holds each beam's spot once"});
 }
+
 
 // 2. JSON nested deeper than 64 levels (memory quadratic in the depth).
 TEST_F(HostileInput, DeeplyNestedJsonIsRefusedWithItsLine) {

@@ -207,7 +207,7 @@ TEST(CalibrateModule, GridsBeyondTheLimitAreRefusedWithoutOverflow) {
   Result<ModuleCalibrationResult> r = CalibrateModule(s.spots, s.slices, std::nullopt);
   ASSERT_FALSE(r.ok());
   EXPECT_EQ(r.status().message(),
-            "source '" + s.spots[0].source +
+            s.spots[0].where + ": source '" + s.spots[0].source +
                 "': beam id 2147483647 is beyond the largest grid (201 x 201 = 40401 beams)");
   s = Session(d, 4, 0.0);
   CalibrateModuleOptions options;
@@ -218,6 +218,42 @@ TEST(CalibrateModule, GridsBeyondTheLimitAreRefusedWithoutOverflow) {
     EXPECT_EQ(r.status().message(),
               "beams per side must be odd and in [3, 201], got " + std::to_string(n));
   }
+}
+
+TEST(CalibrateModule, BadBeamIdsAndRepeatedSpotsNameTheirLines) {
+  // Issue 19: these were refused without the file and line of the spot.
+  ModuleDesign d = test::Prototype();
+  SessionData s = Session(d, 4, 0.0);
+  ASSERT_GE(s.spots.size(), 3u);
+  s.spots[2].where = "slices.csv:4";
+  s.spots[2].observation.beam_id = 0;
+  Result<ModuleCalibrationResult> r = CalibrateModule(s.spots, s.slices, std::nullopt);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().message(),
+            "slices.csv:4: beam id 0 of source '" + s.spots[2].source + "' must be >= 1");
+
+  s = Session(d, 4, 0.0);
+  s.spots[2].where = "slices.csv:4";
+  CalibrateModuleOptions options;
+  options.beams_per_side = 3;
+  s.spots[2].observation.beam_id = 10;
+  r = CalibrateModule(s.spots, s.slices, std::nullopt, options);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().message(), "slices.csv:4: beam id 10 of source '" + s.spots[2].source +
+                                      "' is outside 1..9 (a grid of 3 x 3 beams)");
+
+  // The same beam twice in one slice: both lines are named.
+  s = Session(d, 4, 0.0);
+  ASSERT_EQ(s.slices[0], s.slices[1]);
+  s.spots[0].where = "slices.csv:2";
+  s.spots[1].where = "slices.csv:3";
+  s.spots[1].observation.beam_id = s.spots[0].observation.beam_id;
+  r = CalibrateModule(s.spots, s.slices, std::nullopt);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().message(),
+            "slices.csv:3: a second spot of beam " + std::to_string(s.spots[0].observation.beam_id) +
+                " of source '" + s.spots[0].source + "' in slice " + std::to_string(s.slices[0]) +
+                " (the first is slices.csv:2): a slice holds each beam's spot once");
 }
 
 }  // namespace

@@ -11,6 +11,7 @@
 
 #include "io/colmap_model_internal.h"
 #include "opl/core/format.h"
+#include "opl/core/message_text.h"
 
 namespace opl {
 namespace colmap_internal {
@@ -73,7 +74,7 @@ class LineParser {
 
   Status FieldError(const std::string& field, const std::string& what,
                     const std::string& text) const {
-    return Error("field '" + field + "': " + what + ": '" + text + "'");
+    return Error("field '" + field + "': " + what + ": " + QuoteForMessage(text));
   }
 
   Status Double(const std::string& field, const std::string& text, double* value) const {

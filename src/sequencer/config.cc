@@ -178,17 +178,47 @@ bool SequencerConfig::IsValid(std::string* error) const {
   return true;
 }
 
+namespace {
+
+// A message made one safe line of bounded length (issue 19 item 7): JSON's
+// "; last read: '...'" (an echo of up to a whole line of the file) is left
+// out, control characters are escaped as \xHH, and the text is cut at 300
+// bytes.
+std::string SafeMessage(std::string message) {
+  if (const size_t at = message.find("; last read: "); at != std::string::npos) message.resize(at);
+  constexpr size_t kMaxBytes = 300;
+  std::string out;
+  for (const char c : message) {
+    if (out.size() >= kMaxBytes) {
+      out += "...";
+      break;
+    }
+    const auto byte = static_cast<unsigned char>(c);
+    if (byte < 0x20 || byte == 0x7f) {
+      static const char* kHex = "0123456789abcdef";
+      out += "\\x";
+      out += kHex[byte >> 4];
+      out += kHex[byte & 15];
+    } else {
+      out += c;
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
 Result<SequencerConfig> ParseConfig(const std::string& json_text) {
   SequencerConfig config;
   try {
     config = FromJson(json::parse(json_text));
-  } catch (const json::exception& e) {
-    return Status(StatusCode::kInvalidArgument, std::string("configuration: ") + e.what());
   } catch (const std::exception& e) {
-    return Status(StatusCode::kInvalidArgument, std::string("configuration: ") + e.what());
+    return Status(StatusCode::kInvalidArgument, "configuration: " + SafeMessage(e.what()));
   }
   std::string error;
-  if (!config.IsValid(&error)) return Status(StatusCode::kInvalidArgument, "configuration: " + error);
+  if (!config.IsValid(&error)) {
+    return Status(StatusCode::kInvalidArgument, "configuration: " + SafeMessage(error));
+  }
   return config;
 }
 

@@ -37,7 +37,10 @@ case "$iterations$seed" in
   *[!0-9]*) echo "usage: $0 [ITERATIONS] [SEED] [BUILD_DIR] (integers)" >&2; exit 2 ;;
 esac
 bin=$build/tests/fuzz
-for t in reader_fuzz_test cli_fuzz_test; do
+# The sequencer's test exists only when the sequencer is built (libgpiod).
+tests_to_run="reader_fuzz_test colmap_fuzz_test cli_fuzz_test"
+[ -x "$bin/test_fuzz_sequencer_config_fuzz_test" ] && tests_to_run="$tests_to_run sequencer_config_fuzz_test"
+for t in $tests_to_run; do
   if [ ! -x "$bin/test_fuzz_$t" ]; then
     echo "$0: $bin/test_fuzz_$t is not built (cmake --build $build --target test_fuzz_$t)" >&2
     exit 2
@@ -63,7 +66,7 @@ start=$(date +%s)
 failed=0
 # Each gtest test alone, so that an abort (a hang, a sanitizer report) ends
 # one format and not the run.
-for t in reader_fuzz_test cli_fuzz_test; do
+for t in $tests_to_run; do
   n=$iterations
   [ "$t" = cli_fuzz_test ] && n=$cli_iterations
   tests=$("$bin/test_fuzz_$t" --gtest_list_tests |

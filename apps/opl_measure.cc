@@ -398,7 +398,13 @@ int Run(int argc, char** argv) {
     return *code;
   }
 
-  Result<MeasureReport> report = MeasureScale(*calibration, spots->spots, MeasureOptions());
+  // Identifying tens of thousands of unassigned spots takes seconds: a
+  // progress line on a terminal (nothing in logs and pipes).
+  cli::ProgressBar identify_bar("identify", cli::StderrIsTerminal());
+  MeasureOptions measure_options;
+  measure_options.identify.progress = identify_bar.IdentifyCallback();
+  Result<MeasureReport> report = MeasureScale(*calibration, spots->spots, measure_options);
+  identify_bar.Finish();
   if (!report.ok()) return cli::FailInput(kTool, report.status());
 
   // Every output is made before the first is written.

@@ -36,14 +36,44 @@ std::string ProgressBar::Render(const std::string& label, int done, int total, d
   return bar;
 }
 
-void ProgressBar::Update(int done, int total) {
-  if (!enabled_) return;
-  const double elapsed =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+std::string ProgressBar::RenderIdentify(const std::string& label, const IdentifyProgress& progress,
+                                        double elapsed_s) {
+  char buffer[200];
+  std::snprintf(buffer, sizeof(buffer),
+                ": %d seed%s tried, %d/%d sources found, %d/%d points  %.1f s",
+                progress.seeds_tried, progress.seeds_tried == 1 ? "" : "s", progress.sources_found,
+                progress.num_sources, progress.points_assigned, progress.points, elapsed_s);
+  return label + buffer;
+}
+
+double ProgressBar::ElapsedSeconds() const {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+}
+
+void ProgressBar::Draw(const std::string& text) {
   // Pad to erase a longer previous line.
-  std::fprintf(stderr, "\r%-78s", Render(label_, done, total, elapsed).c_str());
+  std::fprintf(stderr, "\r%-78s", text.c_str());
   std::fflush(stderr);
   drawn_ = true;
+}
+
+void ProgressBar::Update(int done, int total) {
+  if (!enabled_) return;
+  Draw(Render(label_, done, total, ElapsedSeconds()));
+}
+
+std::function<void(const IdentifyProgress&)> ProgressBar::IdentifyCallback() {
+  return [this](const IdentifyProgress& progress) {
+    if (!enabled_) return;
+    if (progress.finished) {
+      Finish();
+      return;
+    }
+    // Nothing for a search that is over at once (most are): only one that
+    // has taken half a second is shown.
+    const double elapsed = ElapsedSeconds();
+    if (elapsed >= 0.5) Draw(RenderIdentify(label_, progress, elapsed));
+  };
 }
 
 void ProgressBar::Finish() {

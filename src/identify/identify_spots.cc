@@ -142,6 +142,13 @@ Result<IdentifyResult> IdentifySpots(const ModuleCalibration& calibration, const
 
   Identifier identifier(calibration, options, &pool, reserved);
   std::vector<char> done(num_sources, 0);
+  IdentifyProgress progress;
+  progress.num_sources = num_sources;
+  progress.points = pool.size();
+  auto report_progress = [&]() {
+    if (options.progress) options.progress(progress);
+  };
+  report_progress();
   std::vector<std::string> ambiguity(num_sources);
   for (int s = 0; s < num_sources; ++s) {
     if (identifier.index(s).spacing_rad <= 0.0) {
@@ -325,6 +332,8 @@ Result<IdentifyResult> IdentifySpots(const ModuleCalibration& calibration, const
       }
       out.rms_residual_rad = std::sqrt(ss / (2.0 * std::max<size_t>(1, b.point.size())));
       done[b.source] = 1;
+      ++progress.sources_found;
+      progress.points_assigned += out.assigned;
       return true;
     }
     // Ambiguous: say why, for every source involved.
@@ -371,8 +380,11 @@ Result<IdentifyResult> IdentifySpots(const ModuleCalibration& calibration, const
         if (all_done() || *counter >= options.max_seeds) break;
         if (!usable(seed)) continue;
         ++*counter;
+        const int derived_before = tried_derived;
         try_seed(seed, true, deferrals < kDeferrals);
         deferrals += deferred_one;
+        progress.seeds_tried += 1 + (tried_derived - derived_before);
+        report_progress();
       }
     }
   };
@@ -424,6 +436,16 @@ Result<IdentifyResult> IdentifySpots(const ModuleCalibration& calibration, const
       }
     }
   }
+
+  progress.sources_found = 0;
+  progress.points_assigned = 0;
+  for (const IdentifiedSource& source : result.sources) {
+    if (source.outcome != IdentifyOutcome::kFound) continue;
+    ++progress.sources_found;
+    progress.points_assigned += source.assigned;
+  }
+  progress.finished = true;
+  report_progress();
 
   for (int s = 0; s < num_sources; ++s) {
     IdentifiedSource& out = result.sources[s];

@@ -19,5 +19,20 @@ TEST(ProgressBarTest, RendersFillCountRateAndTimeLeft) {
   EXPECT_EQ(ProgressBar::Render("x", 3, 0, 1.0).substr(0, 30), "x [########################] 3");
 }
 
+TEST(ProgressBarTest, RendersAnIdentificationWithoutATotal) {
+  IdentifyProgress p;
+  p.seeds_tried = 37;
+  p.sources_found = 1;
+  p.num_sources = 2;
+  p.points_assigned = 5041;
+  p.points = 10509;
+  const std::string line = ProgressBar::RenderIdentify("identify", p, 4.06);
+  EXPECT_EQ(line, "identify: 37 seeds tried, 1/2 sources found, 5041/10509 points  4.1 s");
+  EXPECT_LE(line.size(), 78u);  // the width Finish erases
+  p.seeds_tried = 1;
+  EXPECT_EQ(ProgressBar::RenderIdentify("identify", p, 0.0),
+            "identify: 1 seed tried, 1/2 sources found, 5041/10509 points  0.0 s");
+}
+
 }  // namespace
 }  // namespace opl::cli

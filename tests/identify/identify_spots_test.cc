@@ -310,5 +310,46 @@ TEST(IdentifySpots, ThreadsGiveIdenticalResults) {
   EXPECT_EQ(bad.Validate().message(), "IdentifyOptions.num_threads = 0: must be in [1, 256]");
 }
 
+TEST(IdentifySpots, ProgressIsReportedAndChangesNothing) {
+  // Issue 19 item 8: the progress callback sees every seed, ends with the
+  // result's own counts, and the result is the same with or without it.
+  for (int k = 0; k < 4; ++k) {
+    const test::IdentifyScene scene = test::MakeIdentifyScene(3100 + k);
+    const Result<IdentifyResult> reference =
+        IdentifySpots(scene.calibration, scene.spots, IdentifyOptions());
+    ASSERT_TRUE(reference.ok()) << reference.status().ToString();
+    std::vector<IdentifyProgress> calls;
+    IdentifyOptions options;
+    options.progress = [&calls](const IdentifyProgress& p) { calls.push_back(p); };
+    const Result<IdentifyResult> r = IdentifySpots(scene.calibration, scene.spots, options);
+    ASSERT_TRUE(r.ok()) << r.status().ToString();
+    EXPECT_EQ(r->source_index, reference->source_index) << "scene " << k;
+    EXPECT_EQ(r->beam_id, reference->beam_id) << "scene " << k;
+    ASSERT_GE(calls.size(), 3u) << "scene " << k;  // start, a seed at least, end
+    int found = 0, assigned = 0;
+    for (const IdentifiedSource& source : r->sources) {
+      if (source.outcome != IdentifyOutcome::kFound) continue;
+      ++found;
+      assigned += source.assigned;
+    }
+    EXPECT_EQ(calls.front().seeds_tried, 0);
+    EXPECT_EQ(calls.front().sources_found, 0);
+    EXPECT_EQ(calls.front().points_assigned, 0);
+    EXPECT_EQ(calls.front().points, static_cast<int>(scene.spots.size()) - r->passed_through);
+    for (size_t c = 0; c < calls.size(); ++c) {
+      EXPECT_EQ(calls[c].num_sources, static_cast<int>(scene.calibration.sources.size()));
+      EXPECT_EQ(calls[c].finished, c + 1 == calls.size());
+      if (c > 0 && c + 1 < calls.size()) {
+        EXPECT_GT(calls[c].seeds_tried, calls[c - 1].seeds_tried) << "call " << c;
+        EXPECT_GE(calls[c].sources_found, calls[c - 1].sources_found) << "call " << c;
+      }
+    }
+    EXPECT_EQ(calls.back().seeds_tried, calls[calls.size() - 2].seeds_tried);
+    EXPECT_EQ(calls.back().sources_found, found) << "scene " << k;
+    EXPECT_EQ(calls.back().points_assigned, assigned) << "scene " << k;
+    EXPECT_GT(assigned, 0) << "scene " << k;
+  }
+}
+
 }  // namespace
 }  // namespace opl

@@ -4,11 +4,12 @@
 #include <cmath>
 #include <random>
 
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "opl/lab/spot_image.h"
 #include "opl/sim/random.h"
+#include "opl/vision/image_decode.h"
+#include "opl/vision/spot_detection.h"
 
 namespace opl {
 namespace {
@@ -125,17 +126,28 @@ std::vector<Distractor> MakeDistractors(int count, int width_px, int height_px, 
 }
 
 Result<cv::Mat> ReadWallTexture(const std::string& path) {
-  cv::Mat bgr;
-  try {
-    bgr = cv::imread(path, cv::IMREAD_COLOR);
-  } catch (const cv::Exception& e) {
-    return Status::IoError(path + ": cannot read the wall texture: " + e.what());
+  // Decoded as the shots are (vision/image_decode.h: sensor pixels, nothing
+  // printed on stderr). A damaged file is refused rather than rendered with
+  // the decoder's fill.
+  Result<DecodedImage> image = ReadImageFile(path);
+  if (!image.ok()) return image.status();
+  if (!image->warnings.empty()) {
+    return Status::IoError(path + ": the wall texture is damaged (" + image->warnings.front() +
+                           ")");
   }
-  if (bgr.empty()) {
-    return Status::IoError(path + ": cannot read the wall texture (missing, or not an image)");
+  const cv::Mat& pixels = image->pixels;
+  if (pixels.depth() != CV_8U && pixels.depth() != CV_16U) {
+    return Status::IoError(path + ": image type " + OpenCvTypeName(pixels.type()) +
+                           " is not supported for a wall texture (8 or 16 bit)");
+  }
+  cv::Mat bgr = pixels;
+  if (pixels.channels() == 1) cv::cvtColor(pixels, bgr, cv::COLOR_GRAY2BGR);
+  if (bgr.channels() != 3) {
+    return Status::IoError(path + ": image type " + OpenCvTypeName(pixels.type()) +
+                           " is not supported for a wall texture (grey or colour)");
   }
   cv::Mat texture;
-  bgr.convertTo(texture, CV_32FC3, 1.0 / 255.0);
+  bgr.convertTo(texture, CV_32FC3, pixels.depth() == CV_8U ? 1.0 / 255.0 : 1.0 / 65535.0);
   return texture;
 }
 

@@ -95,6 +95,14 @@ Result<CameraImagesCalibration> CalibrateCameraFromImageFiles(const std::vector<
                                      std::to_string(out.height_px) +
                                      ": the images of one calibration come from one camera at one size");
     }
+    if (!shot->decode_warnings.empty()) {
+      // A damaged file (a JPEG cut short, corrupt data): its pixels after
+      // the damage are the decoder's fill, not the board. Not used, and
+      // reported as a rejected view with the decoder's word.
+      out.rejected.push_back({file, "damaged image file (" + shot->decode_warnings.front() +
+                                        "): not used"});
+      continue;
+    }
     Result<BoardView> view = DetectCalibrationBoard(image, board, options.calibration);
     if (!view.ok()) {
       if (view.status().code() != StatusCode::kNoSolution) {

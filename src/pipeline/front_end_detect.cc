@@ -98,6 +98,7 @@ Status FrontEndRun::Detect() {
     ImageData& d = data[static_cast<size_t>(i)];
     d.tags = std::move(*tags);
     d.lossy_jpeg = image->lossy_jpeg;
+    d.decode_warnings = image->decode_warnings;
     return image;
   };
   internal::ParallelFor(static_cast<int>(dark_shots.size()), threads, [&](int k) {
@@ -183,6 +184,7 @@ Status FrontEndRun::Detect() {
     f.blobs_rejected = data[static_cast<size_t>(i)].blobs_rejected;
     f.spots_saturated = data[static_cast<size_t>(i)].spots_saturated;
     f.lossy_jpeg = data[static_cast<size_t>(i)].lossy_jpeg;
+    f.decode_warnings = data[static_cast<size_t>(i)].decode_warnings;
     f.laser_off = scene.shots[static_cast<size_t>(i)].lasers.empty();
     f.spots = data[static_cast<size_t>(i)].spots;
     f.rejected_blobs_px = data[static_cast<size_t>(i)].rejected_blobs_px;

@@ -6,6 +6,7 @@
 #include <string>
 
 #include "opl/core/format.h"
+#include "opl/core/message_text.h"
 #include "opl/vision/scene_frame.h"
 #include "pipeline/front_end_run.h"
 
@@ -79,6 +80,16 @@ void FrontEndRun::WarnOutOfRange() {
   for (const ImageFindings& f : result.images) {
     if (f.lossy_jpeg) jpegs.push_back(f.file);
     const std::string at = f.file + ": ";
+    if (!f.decode_warnings.empty()) {
+      // The decoder's own words, each already one safe line; the whole cut.
+      std::string said;
+      for (const std::string& w : f.decode_warnings) said += (said.empty() ? "" : "; ") + w;
+      result.warnings.push_back(SafeForMessage(f.file, 120) +
+                                ": damaged image file, decoded anyway (" +
+                                SafeForMessage(said, 300) +
+                                "): its pixels after the damage may be wrong or grey; check the "
+                                "file or shoot it again");
+    }
     // An image's RMS above warn_rms_ratio times its model's, or above its
     // model's and warn_rms_ratio times the median image's (the variance
     // components are common to all images, so one bad camera mostly shows

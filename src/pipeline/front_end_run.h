@@ -39,6 +39,7 @@ struct ImageData {
   std::vector<Eigen::Vector2d> rejected_blobs_px;
   int dark_frame = -1;  // laser-off shot subtracted, or -1
   std::vector<std::pair<int, double>> dark_candidates;  // (laser-off shot, tag shift px)
+  std::vector<std::string> decode_warnings;  // ShotImage::decode_warnings
 };
 
 // One run of the front end: its state between the stages, which

@@ -78,7 +78,8 @@ std::string ImageMeasureReport::ToJson() const {
                       {"lossy_jpeg", f.lossy_jpeg},
                       {"laser_off", f.laser_off},
                       {"dark_frame", f.dark_frame.empty() ? ordered_json(nullptr) : ordered_json(f.dark_frame)},
-                      {"notes", f.notes}});
+                      {"notes", f.notes},
+                      {"decode_warnings", f.decode_warnings}});
   }
   doc["images"] = images;
   ordered_json groups = ordered_json::array();

@@ -56,6 +56,7 @@ Result<std::vector<std::pair<std::string, std::string>>> RenderOverlays(
   internal::ParallelFor(n, threads, [&](int i) {
     const SceneShot& shot = scene.shots[static_cast<size_t>(i)];
     const std::string path = (std::filesystem::path(images_dir) / shot.file).string();
+    // Its decode warnings, if any, are already in the report's (the front end's).
     Result<ShotImage> image = ReadShotImage(path, SpotChannel::kLuma);
     if (!image.ok()) {
       errors[static_cast<size_t>(i)] = image.status();

@@ -1,14 +1,12 @@
 #include "opl/vision/shot_image.h"
 
-#include <filesystem>
 #include <algorithm>
+#include <filesystem>
 #include <fstream>
-#include <iterator>
 #include <new>
 #include <utility>
 #include <vector>
 
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "opl/core/message_text.h"
@@ -92,86 +90,22 @@ std::optional<std::pair<long long, long long>> ReadImageHeaderSize(const std::st
 
 namespace {
 
-Status CheckImageSize(const std::string& path, long long width, long long height) {
-  if (width <= kMaxImageSidePx && height <= kMaxImageSidePx &&
-      width * height <= kMaxImagePixels) {
-    return Status::Ok();
-  }
-  return Status::InvalidArgument(
-      path + ": " + std::to_string(width) + " x " + std::to_string(height) +
-      " pixels is beyond the limit of " + std::to_string(kMaxImageSidePx) + " pixels a side and " +
-      std::to_string(kMaxImagePixels / 1000000) + " megapixels");
-}
-
-// A PNG's bytes with its ancillary chunks left out, except tRNS (which
-// changes the pixels): libpng prints "libpng warning: ..." on stderr for some
-// of them (an iCCP profile it dislikes, a bad CRC in a tEXt chunk), which
-// would add lines to the tools' one-line stderr (issue 19 item 7); none of
-// them changes the decoded pixels OpenCV returns. A chunk whose length runs
-// past the end of the file is an error here: libpng would first allocate the
-// length it claims (2 GB for 0x7fffffff: 1.5 s and 2 GB for a 200-byte file,
-// found by tests/fuzz). Anything else (not a PNG, a truncated chunk head) is
-// returned unchanged for the decoder to judge.
-Result<std::vector<unsigned char>> WithoutAncillaryPngChunks(const std::string& path,
-                                                             std::vector<unsigned char> bytes) {
-  static const unsigned char kPng[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n'};
-  if (bytes.size() < 8 || !std::equal(kPng, kPng + 8, bytes.begin())) return bytes;
-  std::vector<unsigned char> out(bytes.begin(), bytes.begin() + 8);
-  out.reserve(bytes.size());
-  size_t at = 8;
-  while (at + 12 <= bytes.size()) {
-    const unsigned long long length = BigEndian(bytes.data() + at, 4);
-    const unsigned char* type = bytes.data() + at + 4;
-    if (length > bytes.size() - at - 12) {
-      return Status::IoError(
-          path + ": cannot decode the image: PNG chunk " +
-          QuoteForMessage(std::string(reinterpret_cast<const char*>(type), 4)) + " at byte " +
-          std::to_string(at) + " claims " + std::to_string(length) + " bytes, more than the " +
-          std::to_string(bytes.size() - at - 12) + " left in the file");
-    }
-    const bool ancillary = (type[0] & 0x20) != 0;
-    const bool trns = std::equal(type, type + 4, "tRNS");
-    if (!ancillary || trns) {
-      out.insert(out.end(), bytes.begin() + at, bytes.begin() + at + 12 + length);
-    }
-    at += 12 + length;
-    if (std::equal(type, type + 4, "IEND")) break;
-  }
-  return out;
-}
-
-// Reads and converts; may throw cv::Exception (caught by ReadShotImage).
+// Decodes and converts; may throw cv::Exception (caught by ReadShotImage).
 Result<ShotImage> DecodeShotImage(const std::string& path, SpotChannel channel) {
-  std::vector<unsigned char> bytes;
-  {
-    std::ifstream in(path, std::ios::binary);
-    bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-    if (!in.good() && !in.eof()) {
-      return Status::IoError(path + ": cannot read the image");
-    }
-  }
-  Result<std::vector<unsigned char>> kept = WithoutAncillaryPngChunks(path, std::move(bytes));
-  if (!kept.ok()) return kept.status();
-  bytes = std::move(kept).value();
+  Result<std::vector<unsigned char>> bytes = ReadImageFileBytes(path);
+  if (!bytes.ok()) return bytes.status();
   // Sensor pixels: the EXIF orientation is not applied (header).
-  cv::Mat image = bytes.empty() ? cv::Mat()
-                                : cv::imdecode(bytes, cv::IMREAD_ANYDEPTH | cv::IMREAD_ANYCOLOR |
-                                                          cv::IMREAD_IGNORE_ORIENTATION);
-  if (image.empty()) return Status::IoError(path + ": cannot read the image (not an image file?)");
-  OPL_RETURN_IF_ERROR(CheckImageSize(path, image.cols, image.rows));
+  Result<DecodedImage> decoded = DecodeImage(bytes->data(), bytes->size(), path);
+  if (!decoded.ok()) return decoded.status();
+  const cv::Mat& image = decoded->pixels;
   if (image.depth() != CV_8U && image.depth() != CV_16U) {
     return Status::InvalidArgument(path + ": image type " + OpenCvTypeName(image.type()) +
                                    " is not supported (8 or 16 bit)");
   }
   ShotImage shot;
   shot.source_channels = image.channels();
-  {
-    char signature[3] = {0, 0, 0};
-    std::ifstream(path, std::ios::binary).read(signature, 3);
-    shot.lossy_jpeg = static_cast<unsigned char>(signature[0]) == 0xFF &&
-                      static_cast<unsigned char>(signature[1]) == 0xD8 &&
-                      static_cast<unsigned char>(signature[2]) == 0xFF;
-  }
+  shot.lossy_jpeg = decoded->format == ImageFileFormat::kJpeg;
+  shot.decode_warnings = std::move(decoded->warnings);
   if (image.channels() == 1) {
     shot.for_tags = image;
     shot.for_spots = image;
@@ -200,16 +134,13 @@ Result<ShotImage> ReadShotImage(const std::string& path, SpotChannel channel) {
     return Status::IoError(path + ": no such image");
   }
   if (const auto size = ReadImageHeaderSize(path)) {
-    OPL_RETURN_IF_ERROR(CheckImageSize(path, size->first, size->second));
+    OPL_RETURN_IF_ERROR(CheckImageSizeLimit(path, size->first, size->second));
   }
   try {
     return DecodeShotImage(path, channel);
   } catch (const cv::Exception& e) {
     std::string what = e.err.empty() ? std::string(e.what()) : e.err;
-    for (char& c : what) {
-      if (c == '\n' || c == '\r') c = ' ';
-    }
-    return Status::IoError(path + ": cannot decode the image: " + what);
+    return Status::IoError(path + ": cannot decode the image: " + SafeForMessage(what));
   } catch (const std::bad_alloc&) {
     return Status::IoError(path + ": cannot decode the image: out of memory");
   }

@@ -110,6 +110,33 @@ TEST(ImagesCli, SimulateThenMeasure) {
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_THAT(r.out, HasSubstr("Result: s = " + FormatPrintf("%.9f", sp)));
   EXPECT_THAT(r.out, HasSubstr("the scale inside the adjustment (the two-step s above"));
+
+  // A damaged shot that still decodes (a text chunk with a bad CRC after
+  // IHDR: libpng used to print "libpng warning: tEXt: CRC error" on
+  // stderr): measured as before, nothing on stderr from the decoder, and
+  // the decoder's warning is the image's, in the text and in the JSON.
+  const std::string shot = shots + "/cam0_A.png";
+  std::string png = testing_support::ReadAll(shot);
+  const std::string text = "Comment\0hello";
+  png.insert(33, std::string("\0\0\0", 3) + static_cast<char>(text.size()) + "tEXt" + text +
+                     "\xde\xad\xbe\xef");
+  dir.Write("shots/cam0_A.png", png);
+  r = Measure("--calibration " + calibration + " --images " + shots + " --scene " + kScene);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_THAT(r.err, ::testing::Not(HasSubstr("libpng")));
+  EXPECT_THAT(r.out, HasSubstr("Result: s = " + FormatPrintf("%.9f", sp)));
+  EXPECT_THAT(r.out, HasSubstr("warning: cam0_A.png: damaged image file, decoded anyway (tEXt: "
+                               "CRC error)"));
+  r = Measure("--calibration " + calibration + " --images " + shots + " --scene " + kScene +
+              " --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json damaged = nlohmann::json::parse(r.out);
+  for (const auto& image : damaged["images"]) {
+    EXPECT_EQ(image["decode_warnings"],
+              image["file"] == "cam0_A.png" ? nlohmann::json({"tEXt: CRC error"})
+                                            : nlohmann::json::array())
+        << image["file"];
+  }
 }
 
 TEST(ImagesCli, UsageErrors) {

@@ -8,6 +8,7 @@
 // written back by its writer and read again (a reader may not accept what
 // the library cannot represent). OPL_FUZZ_ITERATIONS raises the count
 // (tests/fuzz/run_long.sh).
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -282,15 +283,20 @@ TEST(ReaderFuzz, FrameMetadataJsonl) {
 
 // PNG and JPEG shots through ReadShotImage (the image front end's reader):
 // a decoded image must be within the documented size limit, 8 or 16 bit.
+// Nothing may reach stderr (issue 19 item 7: libpng and libjpeg print their
+// warnings there by default; OPL's decoder collects them into
+// decode_warnings, which must be safe lines).
 TargetResult ImageTarget(const TempDir& dir, const std::string& in, const std::string& ext,
-                         int* printed) {
+                         int* warned) {
   const std::string path = dir.Write("shot" + ext, in);
-  // libpng and libjpeg print on stderr through OpenCV (issue 19 item 7, still
-  // open: see tests/fuzz/cli_fuzz_test.cc): counted, not failed.
   ::testing::internal::CaptureStderr();
   const Result<ShotImage> read = ReadShotImage(path, SpotChannel::kRed);
-  if (!::testing::internal::GetCapturedStderr().empty()) ++*printed;
+  const std::string printed = ::testing::internal::GetCapturedStderr();
   TargetResult r = Judge(read, path);
+  if (!printed.empty()) {
+    r.problem = "the decoder printed on stderr: '" + printed.substr(0, 200) + "'";
+    return r;
+  }
   if (!read.ok()) return r;
   const cv::Mat& tags = read->for_tags;
   const cv::Mat& spots = read->for_spots;
@@ -302,29 +308,42 @@ TargetResult ImageTarget(const TempDir& dir, const std::string& in, const std::s
                 std::to_string(tags.rows) + " with " + std::to_string(tags.channels()) +
                 " channel(s), depth " + std::to_string(tags.depth());
   }
+  if (read->decode_warnings.size() > static_cast<size_t>(kMaxDecodeWarnings) + 1) {
+    r.problem = std::to_string(read->decode_warnings.size()) + " decode warnings kept";
+  }
+  for (const std::string& w : read->decode_warnings) {
+    if (w.empty() || w.size() > 210 || std::any_of(w.begin(), w.end(), [](char c) {
+          return static_cast<unsigned char>(c) < 0x20 || c == 0x7f;
+        })) {
+      r.problem = "a decode warning is not one safe line: '" + w.substr(0, 80) + "'";
+    }
+  }
+  *warned += read->decode_warnings.empty() ? 0 : 1;
   return r;
 }
 
 TEST(ReaderFuzz, Png) {
   const TempDir dir(std::filesystem::exists("/dev/shm") ? "/dev/shm" : "/tmp");
-  int printed = 0;
+  int warned = 0;
   const FuzzStats stats = RunFuzz("png", InputKind::kImage, Settings(),
                                   [&](const std::string& in, const std::string&) {
-                                    return ImageTarget(dir, in, ".png", &printed);
+                                    return ImageTarget(dir, in, ".png", &warned);
                                   });
   EXPECT_GT(stats.accepted, 0);
-  std::printf("  the decoder printed on stderr for %d of them\n", printed);
+  std::printf("  %d accepted with decoder warnings (collected, none printed)\n", warned);
 }
 
 TEST(ReaderFuzz, Jpeg) {
   const TempDir dir(std::filesystem::exists("/dev/shm") ? "/dev/shm" : "/tmp");
-  int printed = 0;
+  int warned = 0;
   const FuzzStats stats = RunFuzz("jpeg", InputKind::kImage, Settings(),
                                   [&](const std::string& in, const std::string&) {
-                                    return ImageTarget(dir, in, ".jpg", &printed);
+                                    return ImageTarget(dir, in, ".jpg", &warned);
                                   });
   EXPECT_GT(stats.accepted, 0);
-  std::printf("  the decoder printed on stderr for %d of them\n", printed);
+  // Mutated JPEGs are mostly damaged but decodable: the warnings must come.
+  EXPECT_GT(warned, 0);
+  std::printf("  %d accepted with decoder warnings (collected, none printed)\n", warned);
 }
 
 }  // namespace

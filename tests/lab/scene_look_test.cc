@@ -17,6 +17,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "io/temp_dir.h"
 #include "opl/io/scene_json.h"
 #include "opl/lab/render_scene.h"
 #include "opl/lab/shot_file.h"
@@ -317,6 +318,32 @@ TEST(SceneLook, AMissingWallTextureIsNamed) {
   EXPECT_NE(renderer.status().message().find("image.wall_texture: /nonexistent/wall.jpg"),
             std::string::npos)
       << renderer.status().message();
+}
+
+// The texture is decoded as the shots are (vision/image_decode.h): the
+// photograph's pixels / 255, and a damaged file refused with the decoder's
+// word, nothing printed on stderr.
+TEST(SceneLook, WallTextureIsDecodedAsShotsAreAndADamagedOneRefused) {
+  const std::string fruits = Texture("fruits.jpg");
+  Result<cv::Mat> texture = ReadWallTexture(fruits);
+  ASSERT_TRUE(texture.ok()) << texture.status().message();
+  const cv::Mat bgr = cv::imread(fruits, cv::IMREAD_COLOR);
+  ASSERT_EQ(texture->size(), bgr.size());
+  ASSERT_EQ(texture->type(), CV_32FC3);
+  cv::Mat expected;
+  bgr.convertTo(expected, CV_32FC3, 1.0 / 255.0);
+  EXPECT_EQ(cv::norm(*texture, expected, cv::NORM_INF), 0.0);
+
+  testing_support::TempDir dir;
+  const std::string bytes = testing_support::ReadAll(fruits);
+  const std::string cut = dir.Write("cut.jpg", bytes.substr(0, bytes.size() / 2));
+  ::testing::internal::CaptureStderr();
+  Result<cv::Mat> damaged = ReadWallTexture(cut);
+  EXPECT_EQ(::testing::internal::GetCapturedStderr(), "");
+  ASSERT_FALSE(damaged.ok());
+  EXPECT_EQ(damaged.status().code(), StatusCode::kIoError);
+  EXPECT_EQ(damaged.status().message(),
+            cut + ": the wall texture is damaged (Premature end of JPEG file)");
 }
 
 }  // namespace

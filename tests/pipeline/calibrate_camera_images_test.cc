@@ -96,6 +96,27 @@ TEST(CalibrateCameraImages, OpenCvPhotosAgreeWithCalibrateCamera) {
   EXPECT_GT(ours->calibration.view_rms_px[worst], 1.0);
 }
 
+// A photo cut short (an interrupted copy) decodes with libjpeg's warning and
+// grey rows after the cut: not used, a rejected view with the decoder's
+// word, and nothing printed on stderr; the others calibrate as before.
+TEST(CalibrateCameraImages, ADamagedPhotoIsARejectedView) {
+  std::vector<std::string> files = SamplePhotos();
+  if (files.size() < 10) GTEST_SKIP() << "opencv-doc's left01.jpg .. left14.jpg not installed";
+  testing_support::TempDir dir;
+  const std::string bytes = testing_support::ReadAll(files[0]);
+  files.push_back(dir.Write("left01_cut.jpg", bytes.substr(0, bytes.size() * 6 / 10)));
+  const CalibrationBoard board = CalibrationBoard::ChessboardOf(Chessboard{9, 6, 25.0});
+  ::testing::internal::CaptureStderr();
+  Result<CameraImagesCalibration> cal =
+      CalibrateCameraFromImageFiles(files, board, CameraImagesOptions{});
+  EXPECT_EQ(::testing::internal::GetCapturedStderr(), "");
+  ASSERT_TRUE(cal.ok()) << cal.status().ToString();
+  EXPECT_EQ(cal->views.size(), files.size() - 1);
+  ASSERT_EQ(cal->rejected.size(), 1u);
+  EXPECT_EQ(cal->rejected[0].file, files.back());
+  EXPECT_EQ(cal->rejected[0].reason, "damaged image file (Premature end of JPEG file): not used");
+}
+
 TEST(CalibrateCameraImages, OpenCvPhotosAgreeWithTheResultOpenCvShips) {
   // left_intrinsics.yml: OpenCV's sample run on these 13 photographs with
   // flags 2 (CALIB_FIX_ASPECT_RATIO) and k3 free. The same model here.

@@ -107,6 +107,8 @@ TEST(ShotImage, RedLaserSpotKeepsItsContrastInTheRedChannel) {
 
 // Issue 19 item 7: libpng printed "libpng warning: tEXt: CRC error" (and
 // iCCP complaints) on stderr, adding lines to the tools' one-line output.
+// Now nothing is printed and the warning is the shot's (the front end
+// reports it).
 TEST(ShotImage, AncillaryPngChunksPrintNoWarning) {
   cv::Mat image(16, 24, CV_8UC1);
   for (int y = 0; y < image.rows; ++y) {
@@ -131,9 +133,37 @@ TEST(ShotImage, AncillaryPngChunksPrintNoWarning) {
   Result<ShotImage> shot = ReadShotImage(path, SpotChannel::kRed);
   EXPECT_EQ(::testing::internal::GetCapturedStderr(), "");
   ASSERT_TRUE(shot.ok()) << shot.status().message();
+  EXPECT_THAT(shot->decode_warnings, ::testing::ElementsAre("tEXt: CRC error"));
+  EXPECT_FALSE(shot->lossy_jpeg);
   cv::Mat diff;
   cv::absdiff(shot->for_tags, image, diff);
   EXPECT_EQ(cv::countNonZero(diff), 0);
+}
+
+// A JPEG cut short (an interrupted copy) is measured, with the decoder's
+// warning for the report; its rows before the cut are exact.
+TEST(ShotImage, JpegCutShortDecodesWithAWarning) {
+  cv::Mat image(64, 80, CV_8UC3);
+  cv::randu(image, cv::Scalar::all(0), cv::Scalar::all(255));
+  std::vector<uchar> jpeg;
+  ASSERT_TRUE(cv::imencode(".jpg", image, jpeg, {cv::IMWRITE_JPEG_QUALITY, 90}));
+  testing_support::TempDir dir;
+  const std::string whole = dir.Write("whole.jpg", std::string(jpeg.begin(), jpeg.end()));
+  const std::string cut = dir.Write("cut.jpg", std::string(jpeg.begin(), jpeg.end() - 2000));
+  ::testing::internal::CaptureStderr();
+  Result<ShotImage> shot = ReadShotImage(cut, SpotChannel::kGreen);
+  Result<ShotImage> sound = ReadShotImage(whole, SpotChannel::kGreen);
+  EXPECT_EQ(::testing::internal::GetCapturedStderr(), "");
+  ASSERT_TRUE(shot.ok()) << shot.status().message();
+  ASSERT_TRUE(sound.ok()) << sound.status().message();
+  EXPECT_TRUE(shot->lossy_jpeg);
+  EXPECT_EQ(shot->source_channels, 3);
+  EXPECT_THAT(shot->decode_warnings, ::testing::Contains("Premature end of JPEG file"));
+  EXPECT_THAT(sound->decode_warnings, ::testing::IsEmpty());
+  EXPECT_EQ(cv::norm(shot->for_spots.rowRange(0, 8), sound->for_spots.rowRange(0, 8),
+                     cv::NORM_INF),
+            0.0);
+  EXPECT_GT(cv::norm(shot->for_spots, sound->for_spots, cv::NORM_INF), 0.0);
 }
 
 // Found by tests/fuzz: a 200-byte PNG whose tEXt chunk claims 0x7fffffff

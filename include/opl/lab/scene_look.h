@@ -61,8 +61,11 @@ const char* DistractorKindName(Distractor::Kind kind);
 // retro-reflective dots (white, 1-2.5 px sigma, like a laser spot).
 std::vector<Distractor> MakeDistractors(int count, int width_px, int height_px, uint64_t seed);
 
-// A wall texture read once: the photograph as CV_32FC3 BGR in [0, 1].
-// IoError when the file cannot be read as an image.
+// A wall texture read once: the photograph as CV_32FC3 BGR in [0, 1]
+// (grey made BGR; 8 and 16-bit files), decoded as the shots are
+// (vision/image_decode.h: sensor pixels, an EXIF orientation not applied).
+// IoError naming the file when it cannot be read as an image, is damaged
+// (its decoder warned: a JPEG cut short, ...) or is not 8 or 16 bit.
 Result<cv::Mat> ReadWallTexture(const std::string& path);
 
 // What ComposeSceneImage needs of a shot.

@@ -220,6 +220,11 @@ struct ImageFindings {
   std::vector<DetectedSpot> spots;
   std::vector<Eigen::Vector2d> rejected_blobs_px;
   std::vector<TagDetection> tags;  // the tags detected (tag_ids' corners)
+  // The image decoder's warnings: the file is damaged but decoded (a JPEG
+  // cut short, corrupt JPEG data, a bad CRC in a PNG text chunk; one safe
+  // line each, vision/image_decode.h). Each such image also gets a warning
+  // in FrontEndResult::warnings.
+  std::vector<std::string> decode_warnings{};
 };
 
 // A laser spot in 3D.

@@ -1,6 +1,6 @@
 // Reading a photograph for the front end: the pixels as the sensor wrote
 // them, and the channel in which the laser spots are looked for
-// (docs/images.md, "Photographs: colour, orientation").
+// (docs/images.md, "Image files" and "The chain", step 1).
 //
 //   Result<ShotImage> shot = ReadShotImage("cam0_A.jpg", SpotChannel::kRed);
 //   DetectTags(shot->for_tags);    // grey (luma): black-and-white tags
@@ -21,12 +21,20 @@
 // A grey image is used for both as it is.
 //
 // Size limit. An image may have at most kMaxImageSidePx pixels a side and
-// kMaxImagePixels pixels in all (docs/formats.md, "Limits"): the largest
-// metric cameras give about 150 megapixels (14204 x 10652). For PNG and JPEG
-// the size is read from the file's header (IHDR, SOF) BEFORE decoding, so a
-// 60-byte file claiming 100000 x 100000 pixels is refused at once instead of
-// making the decoder allocate for it; other formats are checked after
-// decoding (OpenCV's own limit, 2^30 pixels, guards their allocation).
+// kMaxImagePixels pixels in all (vision/image_decode.h; docs/formats.md,
+// "Limits"): the largest metric cameras give about 150 megapixels
+// (14204 x 10652). For PNG and JPEG the size is read from the file's header
+// (IHDR, SOF) BEFORE decoding, so a 60-byte file claiming 100000 x 100000
+// pixels is refused at once instead of making the decoder allocate for it;
+// other formats are checked after decoding (OpenCV's own limit, 2^30 pixels,
+// guards their allocation).
+//
+// Decoding (vision/image_decode.h): PNG and JPEG with OPL's own libpng and
+// libjpeg decoder, pixel for pixel what cv::imdecode gives, and silent: a
+// damaged file that still decodes (a bad CRC in a PNG text chunk, a JPEG cut
+// short) gives its decoder's warnings in ShotImage::decode_warnings, which
+// the image front end reports per image; nothing is printed on stderr.
+// Other formats (TIFF, BMP, ...) go through cv::imdecode.
 //
 // Errors (Status): IoError naming the file when it is missing, not a regular
 // file or not an image, or when the decoder fails ("cannot decode the image:
@@ -38,15 +46,14 @@
 #include <optional>
 #include <string>
 #include <utility>
+#include <vector>
 
 #include <opencv2/core.hpp>
 
 #include "opl/core/status.h"
+#include "opl/vision/image_decode.h"
 
 namespace opl {
-
-constexpr int kMaxImageSidePx = 32768;
-constexpr long long kMaxImagePixels = 160LL * 1000 * 1000;
 
 // The width and height a PNG (IHDR) or JPEG (SOF) file's header declares, read
 // without decoding; nullopt for another format or a header that cannot be
@@ -71,6 +78,9 @@ struct ShotImage {
   cv::Mat for_spots;  // grey or the chosen channel, same size and depth
   int source_channels = 1;  // 1 (grey), 3 (BGR) or 4 (BGRA) as stored in the file
   bool lossy_jpeg = false;  // the file is a JPEG (by its signature, not its name)
+  // The decoder's warnings about a damaged file that still decoded
+  // (DecodedImage::warnings: one safe line each); empty for a sound file.
+  std::vector<std::string> decode_warnings{};
 };
 
 Result<ShotImage> ReadShotImage(const std::string& path, SpotChannel channel);

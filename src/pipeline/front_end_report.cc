@@ -137,10 +137,10 @@ void FrontEndRun::WarnOutOfRange() {
     // JPEG bias").
     result.warnings.push_back(
         std::to_string(jpegs.size()) + " lossy JPEG image(s) (" + list +
-        "): compression moves spot centres, at quality 90 by 0.14 px RMS in the red channel "
+        "): compression moves spot centres, at quality 90 by 0.14 px rms in the red channel "
         "with 4:2:0 chroma (most cameras' JPEG: red detail is mostly chroma, kept at half "
         "resolution), 0.08 px with 4:4:4, 0.05 px in luma; a random error, not a bias, that "
-        "u(s) carries (noise-free: s off by 3e-4 RMS against 6e-6 lossless); prefer PNG or TIFF");
+        "u(s) carries (noise-free: s off by 3e-4 rms against 6e-6 lossless); prefer PNG or TIFF");
   }
 }
 

@@ -179,9 +179,11 @@ void ShowSolverLogging() { FLAGS_minloglevel = google::GLOG_INFO; }
 void AddImageRunOptions(CLI::App& app, ImageRunArgs* args) {
   app.add_option("--spot-channel", args->spot_channel,
                  "With --images, colour photographs: the channel in which laser spots are\n"
-                 "detected: red (red lasers, the default), green, blue or luma; tags are\n"
-                 "always detected in luma, grey images used as they are (docs/images.md)")
-      ->check(CLI::IsMember({"red", "green", "blue", "luma"}))
+                 "detected: red (red lasers, the default), green, blue, luma, or\n"
+                 "red-minus-green (R - G, at least 0: white lamps and highlights cancel, a\n"
+                 "red laser keeps ~90% of its contrast); tags are always detected in luma,\n"
+                 "grey images used as they are (docs/images.md)")
+      ->check(CLI::IsMember({"red", "green", "blue", "luma", "red-minus-green"}))
       ->capture_default_str();
   app.add_flag("--no-dark-frames", args->no_dark_frames,
                "With --images: do not subtract laser-off shots (\"lasers\": [] in the scene)\n"

@@ -88,6 +88,8 @@ struct FrontEndRun {
   void PerImageRms();
   // The warnings of FrontEndOptions::warn_* (after PerImageRms).
   void WarnOutOfRange();
+  // The camera warning of FrontEndOptions::warn_camera_spot_rms_min_px.
+  void WarnCameraSpotRms();
   // FrontEndOptions::max_tag_rms_ratio, unless force.
   Status RefuseBrokenGeometry() const;
   Status MoveToSceneFrame();  // 7
@@ -129,6 +131,10 @@ struct FrontEndRun {
   double tag_extra_var_px2 = 0.0;
   double last_spot_variance_factor = 1.0;
   double spot_point_scale = 1.0;  // a posteriori, on the 3D spot covariances
+  // Per image (PerImageRms): sum of squared spot residuals [px^2] and their
+  // number, for the per-camera RMS of WarnOutOfRange.
+  std::vector<double> spot_residual_sum_px2;
+  std::vector<int> spot_residual_count;
   // The points of the final adjustment's three-point datum; -1: the frame
   // tags' first corners (the tag path).
   std::array<int, 3> datum_points = {-1, -1, -1};

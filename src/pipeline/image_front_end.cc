@@ -41,7 +41,9 @@ Status FrontEndOptions::Validate() const {
        {std::pair<const char*, double>{"warn_rms_ratio", warn_rms_ratio},
         {"warn_unmatched_fraction", warn_unmatched_fraction},
         {"warn_saturated_fraction", warn_saturated_fraction},
-        {"warn_blob_ratio", warn_blob_ratio}}) {
+        {"warn_blob_ratio", warn_blob_ratio},
+        {"warn_camera_spot_rms_ratio", warn_camera_spot_rms_ratio},
+        {"warn_camera_spot_rms_min_px", warn_camera_spot_rms_min_px}}) {
     if (!(std::isfinite(value) && value > 0.0)) {
       return Status::InvalidArgument(std::string(name) + " must be finite and > 0, got " +
                                      FormatNumber(value));

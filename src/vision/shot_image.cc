@@ -20,17 +20,34 @@ const char* SpotChannelName(SpotChannel channel) {
     case SpotChannel::kGreen: return "green";
     case SpotChannel::kBlue: return "blue";
     case SpotChannel::kLuma: return "luma";
+    case SpotChannel::kRedMinusGreen: return "red-minus-green";
   }
   return "?";
 }
 
 Result<SpotChannel> ParseSpotChannel(const std::string& name) {
   for (SpotChannel c : {SpotChannel::kRed, SpotChannel::kGreen, SpotChannel::kBlue,
-                        SpotChannel::kLuma}) {
+                        SpotChannel::kLuma, SpotChannel::kRedMinusGreen}) {
     if (name == SpotChannelName(c)) return c;
   }
   return Status::InvalidArgument("spot channel '" + name +
-                                 "' is not one of red, green, blue, luma");
+                                 "' is not one of red, green, blue, luma, red-minus-green");
+}
+
+cv::Mat RedMinusGreen(const cv::Mat& bgr) {
+  CV_Assert((bgr.depth() == CV_8U || bgr.depth() == CV_16U) &&
+            (bgr.channels() == 3 || bgr.channels() == 4));
+  cv::Mat red, green, out;
+  cv::extractChannel(bgr, red, 2);
+  cv::extractChannel(bgr, green, 1);
+  cv::subtract(red, green, out);  // saturates at 0
+  const double full = bgr.depth() == CV_8U ? 255.0 : 65535.0;
+  // Red clipped, green not: a saturated red spot stays saturated.
+  cv::Mat red_clipped, green_clipped;
+  cv::compare(red, full, red_clipped, cv::CMP_GE);
+  cv::compare(green, full, green_clipped, cv::CMP_LT);
+  out.setTo(full, red_clipped & green_clipped);
+  return out;
 }
 
 namespace {
@@ -122,6 +139,7 @@ Result<ShotImage> DecodeShotImage(const std::string& path, SpotChannel channel) 
     case SpotChannel::kRed: cv::extractChannel(image, shot.for_spots, 2); break;  // BGR(A)
     case SpotChannel::kGreen: cv::extractChannel(image, shot.for_spots, 1); break;
     case SpotChannel::kBlue: cv::extractChannel(image, shot.for_spots, 0); break;
+    case SpotChannel::kRedMinusGreen: shot.for_spots = RedMinusGreen(image); break;
   }
   return shot;
 }

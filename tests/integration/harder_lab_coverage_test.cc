@@ -35,6 +35,7 @@
 #include "opl/lab/render_scene.h"
 #include "opl/pipeline/measure_images.h"
 #include "opl/sim/module_design.h"
+#include "integration/harder_lab_scene.h"
 #include "support/lab_truth.h"
 #include "support/scene_images.h"
 
@@ -48,36 +49,8 @@ int EnvInt(const char* name, int fallback) {
   return v != nullptr && std::atoi(v) >= 1 ? std::atoi(v) : fallback;
 }
 
-Scene ClutterScene() {
-  Result<Scene> scene = ReadSceneJson(SourceDir() + "/examples/scene_clutter.json");
-  EXPECT_TRUE(scene.ok()) << scene.status().ToString();
-  return scene.ok() ? *scene : Scene();
-}
-
-// The module moved rigidly for seed k: up to +-40 mm across the beams (y, z),
-// +-2 deg of yaw and pitch, +-10 deg of roll. Why: JPEG's error on a spot
-// centre is a fixed function of where the spot falls on the 8 x 8 blocks and
-// the 2 x 2 chroma grid, so with one placement every seed repeats the same
-// compression error and s shows it as a bias (one placement, noise-free, JPEG
-// 90: s/s_true - 1 = +4.7e-3 in every seed, z +0.54; 4:4:4 chroma: -2.4e-3;
-// the 200 scenes of one placement had mean z +0.31). Over placements that
-// error is random and u(s) covers it (noise-free JPEG, 16 placements: mean z
-// +0.07, RMS z 0.83; docs/images.md, "The harder lab").
-void PlaceModuleForSeed(Scene& scene, uint64_t seed) {
-  std::mt19937_64 rng(0x9e3779b97f4a7c15ULL ^ seed);
-  std::uniform_real_distribution<double> uniform(-1.0, 1.0);
-  const double deg = M_PI / 180.0;
-  const Eigen::Matrix3d r =
-      (Eigen::AngleAxisd(2.0 * deg * uniform(rng), Eigen::Vector3d::UnitZ()) *
-       Eigen::AngleAxisd(2.0 * deg * uniform(rng), Eigen::Vector3d::UnitY()) *
-       Eigen::AngleAxisd(10.0 * deg * uniform(rng), Eigen::Vector3d::UnitX()))
-          .toRotationMatrix();
-  const double dy = 40.0 * uniform(rng), dz = 40.0 * uniform(rng);
-  const Rigid3d moved(r, Eigen::Vector3d(0.0, dy, dz));
-  for (SourceDesign& source : scene.module->sources) {
-    source.scene_from_source = moved * source.scene_from_source;
-  }
-}
+using test::ClutterScene;
+using test::PlaceModuleForSeed;
 
 struct Outcome {
   uint64_t seed = 0;

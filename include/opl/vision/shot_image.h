@@ -17,7 +17,9 @@
 // (0.299 R + 0.587 G + 0.114 B, cv::COLOR_BGR2GRAY). A laser spot is
 // detected in the channel of the laser's colour: for a red (e.g. 658 nm)
 // laser the red channel, which keeps the spot's whole contrast, where luma
-// keeps 30% of it while adding the wall's green and blue noise and texture.
+// keeps 30% of it while adding the wall's green and blue noise and texture;
+// or red minus green (SpotChannel::kRedMinusGreen), in which white light
+// cancels.
 // A grey image is used for both as it is.
 //
 // Size limit. An image may have at most kMaxImageSidePx pixels a side and
@@ -66,9 +68,17 @@ enum class SpotChannel {
   kGreen,  // green lasers (515-532 nm)
   kBlue,   // blue and violet lasers (405-488 nm)
   kLuma,   // the grey image (a white or infrared source on a monochrome-like image)
+  // Red minus green, saturated at 0 (8 and 16 bit alike): a red laser keeps
+  // ~90% of its contrast (a 658 nm diode on a typical RGB sensor reads
+  // G ~ 0.1 R) while white light (lamps, specular highlights, a white wall)
+  // cancels. A pixel whose red is saturated (the type's maximum) and whose
+  // green is not stays saturated (full scale): the spot detector then
+  // excludes it from the fit as it would in the red channel. A pixel
+  // saturated in both is white light clipped: 0.
+  kRedMinusGreen,
 };
 
-// "red", "green", "blue", "luma".
+// "red", "green", "blue", "luma", "red-minus-green".
 const char* SpotChannelName(SpotChannel channel);
 // The inverse of SpotChannelName; InvalidArgument naming the value and the choices.
 Result<SpotChannel> ParseSpotChannel(const std::string& name);
@@ -84,5 +94,9 @@ struct ShotImage {
 };
 
 Result<ShotImage> ReadShotImage(const std::string& path, SpotChannel channel);
+
+// Red minus green of a BGR(A) image, 8 or 16 bit (SpotChannel::
+// kRedMinusGreen): max(R - G, 0), full scale where R is and G is not.
+cv::Mat RedMinusGreen(const cv::Mat& bgr);
 
 }  // namespace opl

@@ -44,7 +44,7 @@ struct Args {
   std::string out_path;
   std::string report_dir;
   double heatmap_max_mm = 0.0;  // 0: one scale for all sources, their largest value
-  double heatmap_noise_mm = std::numeric_limits<double>::quiet_NaN();  // NaN: none
+  double heatmap_noise_mm = std::numeric_limits<double>::quiet_NaN();  // NaN: from the session (PointToRayNoiseLevel)
   std::string heatmap_format = "png";
   int beams_per_side = 0;
   bool allow_extra_columns = false;
@@ -152,7 +152,13 @@ int WriteOutputs(const Args& args, const opl::ModuleCalibrationResult& result,
     for (size_t i = 0; i < heatmaps.size(); ++i) {
       heatmaps[i].scale_max = scale_max;
       heatmaps[i].scale_note = scale_note;
-      heatmaps[i].noise_level = args.heatmap_noise_mm;
+      // --heatmap-noise-mm, or the level derived from the source's own noise.
+      if (std::isnan(args.heatmap_noise_mm)) {
+        heatmaps[i].noise_level = PointToRayNoiseLevel(result.sources[i]);
+        heatmaps[i].noise_note = "from the session's noise, 95 % family-wise";
+      } else {
+        heatmaps[i].noise_level = args.heatmap_noise_mm;
+      }
       heatmaps[i].value_unit = "mm";
       Result<std::vector<unsigned char>> bytes = RenderGridHeatmap(heatmaps[i], *format, metadata);
       if (!bytes.ok()) return cli::Fail(kTool, bytes.status().message(), cli::kExitInternalError);
@@ -318,7 +324,9 @@ int Run(int argc, char** argv) {
   app.add_option("--heatmap-noise-mm", args.heatmap_noise_mm,
                  "With --report: the mean point-to-ray distance noise alone gives, mm (>= 0;\n"
                  "about 1.25 x the spots' standard deviation across the beam). A map whose\n"
-                 "beams are all at or below it says 'All beams at the noise level'")
+                 "beams are all at or below it says 'All beams at the noise level'. Default:\n"
+                 "derived per source from the session's own residuals, the level that pure\n"
+                 "noise keeps every beam under in 95 % of sessions (docs/report.md)")
       ->type_name("MM");
   app.add_option("--heatmap-format", args.heatmap_format,
                  "With --report: png (default), svg or pdf (vector, for print); the PDF\n"

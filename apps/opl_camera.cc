@@ -12,8 +12,6 @@
 #include <string>
 #include <vector>
 
-#include <opencv2/imgcodecs.hpp>
-
 #include "cli_common.h"
 #include "opl/core/format.h"
 #include "opl/io/atomic_file.h"
@@ -23,12 +21,12 @@
 #include "opl/pipeline/calibrate_camera_images.h"
 #include "opl/report/board_print.h"
 #include "opl/report/coverage_image.h"
+#include "opl/report/plot_format.h"
 
 namespace {
 
 constexpr const char* kTool = "opl_camera";
 constexpr const char* kReportJson = "camera_report.json";
-constexpr const char* kCoveragePng = "coverage.png";
 
 struct Args {
   // calibrate
@@ -40,6 +38,7 @@ struct Args {
   std::string into_path;
   std::string camera = "cam0";
   std::string report_dir;
+  std::string coverage_format = "png";  // png, svg or pdf
   bool free_k3 = false;
   bool zero_tangential = false;
   bool fix_aspect_ratio = false;
@@ -74,9 +73,12 @@ bool ParseColsRows(const std::string& text, int* cols, int* rows) {
   return true;
 }
 
-std::string ReportFile(const Args& args, const char* name) {
+std::string ReportFile(const Args& args, const std::string& name) {
   return args.report_dir.empty() ? std::string() : (std::filesystem::path(args.report_dir) / name).string();
 }
+
+// coverage.png, coverage.svg or coverage.pdf.
+std::string CoverageName(const Args& args) { return "coverage." + args.coverage_format; }
 
 int Calibrate(const Args& args) {
   using namespace opl;
@@ -85,6 +87,9 @@ int Calibrate(const Args& args) {
                      cli::kExitUsage);
   }
   if (args.camera.empty()) return cli::Fail(kTool, "--camera: must not be empty", cli::kExitUsage);
+  Result<PlotFormat> format = PlotFormatFromPath(CoverageName(args));
+  if (!format.ok()) return cli::Fail(kTool, "--coverage-format: " + format.status().message(), cli::kExitUsage);
+  const PlotFormat coverage_format = *format;
   // The board.
   CalibrationBoard board;
   if (!args.board_path.empty()) {
@@ -121,7 +126,7 @@ int Calibrate(const Args& args) {
             {{"--out", args.out_path},
              {"--into", args.into_path},
              {"--report (" + std::string(kReportJson) + ")", ReportFile(args, kReportJson)},
-             {"--report (" + std::string(kCoveragePng) + ")", ReportFile(args, kCoveragePng)}})) {
+             {"--report (" + CoverageName(args) + ")", ReportFile(args, CoverageName(args))}})) {
       return *code;
     }
   }
@@ -149,8 +154,16 @@ int Calibrate(const Args& args) {
   if (!cal.ok()) return cli::FailInput(kTool, cal.status());
   const SceneCamera camera = cal->ToSceneCamera(args.camera);
 
+  // Every output or none, each with the run's provenance (io/output_set.h).
+  std::vector<std::string> inputs = {args.board_path, args.into_path};
+  inputs.insert(inputs.end(), files.begin(), files.end());
+  Provenance provenance;
+  if (std::optional<int> code = cli::MakeRunProvenance(kTool, args.argc, args.argv, inputs, &provenance)) {
+    return *code;
+  }
+
   // Everything is made before the first write.
-  std::string out_text, into_updated, report_json, coverage_png;
+  std::string out_text, into_updated, report_json, coverage_bytes;
   std::string into_note;
   if (!args.out_path.empty()) out_text = FormatCamerasJson({camera});
   if (!args.into_path.empty()) {
@@ -165,20 +178,13 @@ int Calibrate(const Args& args) {
     report_json = cal->ToJson();
     CoverageImageOptions copt;
     copt.title = "Camera '" + args.camera + "'";
-    Result<cv::Mat> picture = DrawCoverageImage(cal->width_px, cal->height_px, cal->views, cal->coverage, copt);
+    PlotMetadata metadata;  // a PDF's provenance (PNG and SVG are stamped when staged)
+    metadata.creator = "OPL " + provenance.tool + " " + provenance.version;
+    metadata.subject = FormatProvenanceJson(provenance);
+    Result<std::vector<unsigned char>> picture = RenderCoverageImage(
+        cal->width_px, cal->height_px, cal->views, cal->coverage, coverage_format, copt, metadata);
     if (!picture.ok()) return cli::Fail(kTool, picture.status().message(), cli::kExitInternalError);
-    std::vector<unsigned char> png;
-    if (!cv::imencode(".png", *picture, png)) {
-      return cli::Fail(kTool, "cannot encode the coverage picture", cli::kExitInternalError);
-    }
-    coverage_png.assign(png.begin(), png.end());
-  }
-  // Every output or none, each with the run's provenance (io/output_set.h).
-  std::vector<std::string> inputs = {args.board_path, args.into_path};
-  inputs.insert(inputs.end(), files.begin(), files.end());
-  Provenance provenance;
-  if (std::optional<int> code = cli::MakeRunProvenance(kTool, args.argc, args.argv, inputs, &provenance)) {
-    return *code;
+    coverage_bytes.assign(picture->begin(), picture->end());
   }
   OutputSet outputs(provenance);
   if (!args.report_dir.empty()) {
@@ -187,9 +193,13 @@ int Calibrate(const Args& args) {
       return cli::Fail(kTool, args.report_dir + ": cannot create the report folder: " + ec.message(),
                        cli::kExitWriteFailed);
     }
-    for (const auto& [name, bytes] : {std::pair<const char*, const std::string*>{kReportJson, &report_json},
-                                      {kCoveragePng, &coverage_png}}) {
-      if (Status s = outputs.Add(ReportFile(args, name), *bytes); !s.ok()) return cli::FailWrite(kTool, s);
+    if (Status s = outputs.Add(ReportFile(args, kReportJson), report_json); !s.ok()) return cli::FailWrite(kTool, s);
+    // A PDF carries its provenance in its document information (set when drawn).
+    const std::string coverage_path = ReportFile(args, CoverageName(args));
+    if (Status s = coverage_format == PlotFormat::kPdf ? outputs.AddVerbatim(coverage_path, coverage_bytes)
+                                                       : outputs.Add(coverage_path, coverage_bytes);
+        !s.ok()) {
+      return cli::FailWrite(kTool, s);
     }
   }
   if (!args.out_path.empty()) {
@@ -202,7 +212,7 @@ int Calibrate(const Args& args) {
   std::string text = cal->ToText() + into_note;
   if (!args.out_path.empty()) text += "  wrote camera '" + args.camera + "' to " + args.out_path + "\n";
   if (!args.report_dir.empty()) {
-    text += "  report: " + ReportFile(args, kReportJson) + ", " + ReportFile(args, kCoveragePng) + "\n";
+    text += "  report: " + ReportFile(args, kReportJson) + ", " + ReportFile(args, CoverageName(args)) + "\n";
   }
   return cli::PrintToStdout(kTool, text);
 }
@@ -273,7 +283,7 @@ int Run(int argc, char** argv) {
       "             as a cameras JSON (--out) or into the cameras block of a scene JSON\n"
       "             (--into); prints a report (per-view RMS, rejected images and why, how\n"
       "             much of the sensor the corners covered); --report DIR adds the report as\n"
-      "             JSON and a coverage picture.\n"
+      "             JSON and a coverage picture (PNG, SVG or PDF: --coverage-format).\n"
       "  board      writes a printable AprilTag grid board (PDF or PNG) at its exact size,\n"
       "             with a 100 mm scale check line and its parameters in the margin, and\n"
       "             the board JSON that calibrate reads.\n",
@@ -316,9 +326,21 @@ int Run(int argc, char** argv) {
                         "Scene JSON or cameras JSON to update in place: its camera --camera")
       ->type_name("FILE");
   calibrate->add_option("--camera", args.camera, "Name of the camera written (default cam0)")->type_name("NAME");
-  calibrate->add_option("--report", args.report_dir,
-                        "Folder (created if missing) for camera_report.json and coverage.png")
-      ->type_name("DIR");
+  CLI::Option* report_opt =
+      calibrate
+          ->add_option("--report", args.report_dir,
+                       "Folder (created if missing) for camera_report.json and coverage.png (or\n"
+                       ".svg, .pdf: --coverage-format), the picture of where on the sensor the\n"
+                       "corners fell; all files appear together or none")
+          ->type_name("DIR");
+  calibrate
+      ->add_option("--coverage-format", args.coverage_format,
+                   "With --report: the coverage picture as png (default), svg or pdf (vector,\n"
+                   "for print); each carries the run's provenance (PNG text chunks, SVG\n"
+                   "<metadata>, the PDF's document information)")
+      ->check(CLI::IsMember({"png", "svg", "pdf"}))
+      ->needs(report_opt)
+      ->type_name("FORMAT");
   calibrate->add_flag("--free-k3", args.free_k3, "Estimate k3 too (default: k3 = 0; for wide-angle lenses)");
   calibrate->add_flag("--zero-tangential", args.zero_tangential, "Hold p1 = p2 = 0");
   calibrate->add_flag("--fix-aspect-ratio", args.fix_aspect_ratio, "Hold fx = fy (square pixels)");
@@ -332,6 +354,8 @@ int Run(int argc, char** argv) {
       ->check(CLI::Range(3, 100000));
   calibrate->footer(opl::cli::HelpFooter(
       "  opl_camera calibrate --images shots/ --board board.json --out cameras.json --report rep/\n"
+      "  opl_camera calibrate --images shots/ --board board.json --out cameras.json --report rep/ \\\n"
+      "      --coverage-format pdf\n"
       "  opl_camera calibrate --images /usr/share/doc/opencv-doc/examples/data/left0*.jpg \\\n"
       "      --chessboard 9x6 --square-mm 25 --out cameras.json\n"
       "  opl_camera calibrate --images shots/ --board board.json --into scene.json --camera cam2\n"));

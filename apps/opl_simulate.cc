@@ -369,6 +369,10 @@ int SweepCommand(const Args& args) {
   if (std::optional<int> code = CheckPlotPath(args.plot_path)) return *code;
   Result<SweepParameter> parameter = ParseSweepParameter(args.param);
   if (!parameter.ok()) return cli::Fail(kTool, "--param: " + parameter.status().message(), cli::kExitUsage);
+  if (args.log_x && IsCategoricalSweep(*parameter)) {
+    return cli::Fail(kTool, "--log-x: --param " + args.param + " has named values, not a numeric axis",
+                     cli::kExitUsage);
+  }
   Result<std::vector<double>> values = ParseSweepValues(args.param, args.values);
   if (!values.ok()) return cli::Fail(kTool, "--values: " + values.status().message(), cli::kExitUsage);
   Result<SpotWeighting> weighting = ParseSpotWeighting(args.weighting);
@@ -866,10 +870,10 @@ int Run(int argc, char** argv) {
   sweep->add_option("--plot", args.plot_path,
                     "Plot to write, .png, .svg or .pdf (atomically, with the CSV or not at all):\n"
                     "Monte Carlo markers with error bars, first order (solid line with markers),\n"
-                    "Cramer-Rao bound (dashed over it); layout: markers at 1, 2, ... named in\n"
-                    "the x label")
+                    "Cramer-Rao bound (dashed over it); layout: markers only, at ticks named\n"
+                    "by the layouts")
       ->type_name("FILE.png|svg|pdf");
-  sweep->add_flag("--log-x", args.log_x, "Logarithmic parameter axis in the plot");
+  sweep->add_flag("--log-x", args.log_x, "Logarithmic parameter axis in the plot (not for layout)");
   sweep->add_flag("--log-y", args.log_y,
                   "Logarithmic uncertainty axes in the plot (a power law is a straight line)");
   args.iterations = 1000;

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <map>
+#include <vector>
 
 #include "opl/core/format.h"
 #include "opl/geometry/rotation.h"
@@ -19,7 +21,95 @@ std::string Fixed(double v, int decimals) {
 
 std::string Csv(double v) { return FormatNumber(v, 10); }
 
+// The upper p-quantile of the mean of m independent draws from the
+// empirical distribution of `pool` (binned).
+double MeanOfDrawsQuantile(const std::vector<double>& pool, int m, double p) {
+  constexpr int kBins = 512;
+  const double top = *std::max_element(pool.begin(), pool.end());
+  if (!(top > 0)) return 0.0;
+  const double width = top / (kBins - 1);
+  std::vector<double> single(kBins, 0.0);
+  for (double d : pool) single[static_cast<size_t>(std::lround(d / width))] += 1.0 / pool.size();
+  std::vector<double> sum = single;  // the distribution of the sum of k draws, bin = value / width
+  for (int k = 1; k < m; ++k) {
+    std::vector<double> next(sum.size() + kBins - 1, 0.0);
+    for (size_t i = 0; i < sum.size(); ++i) {
+      if (sum[i] == 0.0) continue;
+      for (size_t j = 0; j < single.size(); ++j) next[i + j] += sum[i] * single[j];
+    }
+    sum.swap(next);
+  }
+  double tail = 0.0;
+  for (size_t i = sum.size(); i-- > 0;) {
+    tail += sum[i];
+    if (tail > p) return static_cast<double>(i) * width / m;
+  }
+  return 0.0;
+}
+
 }  // namespace
+
+double PointToRayNoiseLevel(const SourceCalibrationResult& source, double alpha) {
+  // The used samples' distances per beam.
+  std::map<int, std::vector<double>> by_beam;
+  for (const CalibrationSampleResidual& r : source.residuals) {
+    if (!r.outlier && !r.beam_dropped && std::isfinite(r.point_to_ray_mm)) by_beam[r.beam_id].push_back(r.point_to_ray_mm);
+  }
+  std::vector<std::vector<double>> beams;
+  for (const BeamCalibrationQuality& b : source.beams) {
+    auto it = by_beam.find(b.beam_id);
+    if (it != by_beam.end() && it->second.size() >= 2) beams.push_back(it->second);
+  }
+  if (beams.size() < 2 || !(alpha > 0 && alpha < 1)) return std::numeric_limits<double>::quiet_NaN();
+  // m: the most common number of used samples.
+  std::map<int, int> counts;
+  for (const std::vector<double>& b : beams) ++counts[static_cast<int>(b.size())];
+  int m = 0, most = 0;
+  for (const auto& [size, count] : counts) {
+    if (count > most) most = count, m = size;
+  }
+  const double p = -std::expm1(std::log1p(-alpha) / static_cast<double>(beams.size()));
+  std::vector<double> means;
+  for (const std::vector<double>& b : beams) {
+    double mean = 0.0;
+    for (double d : b) mean += d / b.size();
+    means.push_back(mean);
+  }
+  std::vector<bool> in_pool(beams.size(), true);
+  double level = std::numeric_limits<double>::quiet_NaN();
+  for (int round = 0; round < 3; ++round) {
+    std::vector<double> pool;
+    double obs_sum = 0.0, obs_sum2 = 0.0;
+    int obs_n = 0;
+    for (size_t i = 0; i < beams.size(); ++i) {
+      if (!in_pool[i]) continue;
+      pool.insert(pool.end(), beams[i].begin(), beams[i].end());
+      obs_sum += means[i];
+      obs_sum2 += means[i] * means[i];
+      ++obs_n;
+    }
+    double pool_mean = 0.0, pool_var = 0.0;
+    for (double d : pool) pool_mean += d / pool.size();
+    for (double d : pool) pool_var += (d - pool_mean) * (d - pool_mean) / (pool.size() - 1);
+    const double model_sd = std::sqrt(pool_var / m);
+    const double obs_mean = obs_sum / obs_n;
+    const double obs_sd = std::sqrt(std::max(0.0, (obs_sum2 - obs_n * obs_mean * obs_mean) / (obs_n - 1)));
+    const double q = MeanOfDrawsQuantile(pool, m, p);
+    // The model's shape, the beams' own mean and spread.
+    level = model_sd > 0 ? obs_mean + (q - pool_mean) * obs_sd / model_sd : q;
+    bool changed = false;
+    for (size_t i = 0; i < beams.size(); ++i) {
+      const bool keep = means[i] <= level;
+      changed |= keep != in_pool[i];
+      in_pool[i] = keep;
+    }
+    if (!changed) break;
+  }
+  if (!(level > 0)) return level;
+  // Rounded up to 3 significant digits.
+  const double unit = std::pow(10.0, std::floor(std::log10(level)) - 2);
+  return std::ceil(level / unit - 1e-9) * unit;
+}
 
 std::string CalibrationSummaryText(const ModuleCalibrationResult& result) {
   std::string out;

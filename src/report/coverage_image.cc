@@ -2,24 +2,290 @@
 
 #include <algorithm>
 #include <cmath>
+#include <exception>
+#include <memory>
 #include <string>
+#include <tuple>
 #include <vector>
 
-#include <opencv2/imgproc.hpp>
-
 #include "opl/core/format.h"
+#include "plot_canvas.h"
 
 namespace opl {
 namespace {
 
-// Distinct colours: hue stepped by the golden angle.
-cv::Scalar ViewColour(size_t v) {
+using plot_internal::Align;
+using plot_internal::Font;
+using plot_internal::PlotCanvas;
+using plot_internal::Rgb;
+using plot_internal::Rgb8;
+using plot_internal::TextBox;
+using plot_internal::TextMeter;
+
+const Rgb kBlack = Rgb8(0, 0, 0);
+const Rgb kDarkGrey = Rgb8(60, 60, 60);
+const Rgb kCovered = Rgb8(240, 240, 240);
+const Rgb kEmpty = Rgb8(255, 205, 205);
+const Rgb kGridLine = Rgb8(200, 200, 200);
+const Rgb kOutline = Rgb8(40, 40, 40);
+
+constexpr int kMargin = 24;
+constexpr Font kTitleFont{16, true};
+constexpr Font kCaptionFont{13, false};
+constexpr Font kLegendFont{12, false};
+constexpr double kMinTextSize = 9;
+constexpr int kLegendGap = 24;       // sensor outline -> legend
+constexpr int kLegendRow = 18;       // legend row height
+constexpr int kLegendTextX = 16;     // legend dot column -> text
+constexpr int kLegendMaxWidth = 300;
+constexpr double kDotRadius = 2.5;
+
+// Distinct colours: hue stepped by the golden angle (HSV, S = 220/255,
+// V = 210/255).
+Rgb ViewColour(size_t v) {
   const double hue = std::fmod(static_cast<double>(v) * 137.508, 360.0);
-  cv::Mat hsv(1, 1, CV_8UC3, cv::Scalar(hue / 2.0, 220, 210));
-  cv::Mat bgr;
-  cv::cvtColor(hsv, bgr, cv::COLOR_HSV2BGR);
-  const cv::Vec3b c = bgr.at<cv::Vec3b>(0, 0);
-  return cv::Scalar(c[0], c[1], c[2]);
+  const double value = 210.0 / 255.0, chroma = value * 220.0 / 255.0;
+  const double h6 = hue / 60.0;
+  const double x = chroma * (1.0 - std::fabs(std::fmod(h6, 2.0) - 1.0));
+  double r = 0, g = 0, b = 0;
+  switch (static_cast<int>(h6)) {
+    case 0: r = chroma, g = x; break;
+    case 1: r = x, g = chroma; break;
+    case 2: g = chroma, b = x; break;
+    case 3: g = x, b = chroma; break;
+    case 4: r = x, b = chroma; break;
+    default: r = chroma, b = x; break;
+  }
+  const double m = value - chroma;
+  return Rgb{r + m, g + m, b + m};
+}
+
+struct P2 {
+  double x = 0, y = 0;
+};
+
+// The convex hull (Andrew's monotone chain), without repeated or collinear
+// points; fewer than 3 points are returned as they are (deduplicated).
+std::vector<P2> ConvexHull(std::vector<P2> pts) {
+  std::sort(pts.begin(), pts.end(), [](const P2& a, const P2& b) { return a.x < b.x || (a.x == b.x && a.y < b.y); });
+  pts.erase(std::unique(pts.begin(), pts.end(), [](const P2& a, const P2& b) { return a.x == b.x && a.y == b.y; }),
+            pts.end());
+  if (pts.size() < 3) return pts;
+  const auto cross = [](const P2& o, const P2& a, const P2& b) {
+    return (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x);
+  };
+  std::vector<P2> hull(2 * pts.size());
+  size_t k = 0;
+  for (size_t i = 0; i < pts.size(); ++i) {
+    while (k >= 2 && cross(hull[k - 2], hull[k - 1], pts[i]) <= 0) --k;
+    hull[k++] = pts[i];
+  }
+  for (size_t i = pts.size() - 1, lower = k + 1; i > 0; --i) {
+    while (k >= lower && cross(hull[k - 2], hull[k - 1], pts[i - 1]) <= 0) --k;
+    hull[k++] = pts[i - 1];
+  }
+  hull.resize(k - 1);
+  return hull;
+}
+
+std::string ShortName(std::string name) {
+  if (const size_t slash = name.find_last_of('/'); slash != std::string::npos) name = name.substr(slash + 1);
+  return name;
+}
+
+// Everything CoverageImageLayout holds plus what the renderer needs.
+struct FullLayout {
+  CoverageImageLayout pub;
+  std::string title;
+  Font title_font = kTitleFont;
+  int title_baseline = 0;
+  std::vector<std::string> caption;  // the lines under the title
+  std::vector<Font> caption_fonts;
+  std::vector<int> caption_baselines;
+  std::vector<std::string> legend_texts;  // per row; the last may be "... and N more"
+  std::vector<int> legend_views;          // the view of each row, -1 for "... and N more"
+  std::vector<int> legend_baselines;
+};
+
+Status ValidateArguments(int width_px, int height_px, const SensorCoverage& coverage,
+                         const CoverageImageOptions& options) {
+  OPL_RETURN_IF_ERROR(options.Validate());
+  if (width_px < 1 || height_px < 1) {
+    return Status::InvalidArgument("coverage picture: image size " + std::to_string(width_px) + " x " +
+                                   std::to_string(height_px) + " must be positive");
+  }
+  if (coverage.cells_across < 1 || coverage.cells_across > 100 || coverage.cells_down < 1 ||
+      coverage.cells_down > 100) {
+    return Status::InvalidArgument("coverage picture: SensorCoverage grid " + std::to_string(coverage.cells_across) +
+                                   " x " + std::to_string(coverage.cells_down) + ": must be 1 to 100 cells each way");
+  }
+  const size_t cells = static_cast<size_t>(coverage.cells_across * coverage.cells_down);
+  if (coverage.corners_per_cell.size() != cells) {
+    return Status::InvalidArgument("coverage picture: SensorCoverage.corners_per_cell has " +
+                                   std::to_string(coverage.corners_per_cell.size()) + " entries, expected " +
+                                   std::to_string(coverage.cells_across) + " x " +
+                                   std::to_string(coverage.cells_down) + " = " + std::to_string(cells));
+  }
+  return Status::Ok();
+}
+
+FullLayout ComputeLayout(int width_px, int height_px, const std::vector<BoardView>& views,
+                         const SensorCoverage& coverage, const CoverageImageOptions& options,
+                         const TextMeter& meter) {
+  FullLayout L;
+  CoverageImageLayout& P = L.pub;
+  P.cells_across = coverage.cells_across;
+  P.cells_down = coverage.cells_down;
+  const double scale = static_cast<double>(options.max_side_px) / std::max(width_px, height_px);
+  P.sensor.width = std::max(1, static_cast<int>(std::lround(width_px * scale)));
+  P.sensor.height = std::max(1, static_cast<int>(std::lround(height_px * scale)));
+
+  // Legend texts at their natural width, capped.
+  std::vector<std::string> names;
+  double legend_text_width = 0;
+  for (const BoardView& v : views) {
+    names.push_back(ShortName(v.name) + " (" + std::to_string(v.pixels.size()) + ")");
+    legend_text_width = std::max(legend_text_width, meter.Measure(names.back(), kLegendFont).width);
+  }
+  legend_text_width = std::max(legend_text_width, meter.Measure("... and 9999 more", kLegendFont).width);
+  P.legend.width = std::min(kLegendMaxWidth, kLegendTextX + static_cast<int>(std::ceil(legend_text_width)));
+
+  // The caption: title, fraction, key.
+  L.title = (options.title.empty() ? std::string("Sensor coverage") : options.title) + ": " +
+            std::to_string(views.size()) + " views, " + std::to_string(coverage.num_corners) + " corners, image " +
+            std::to_string(width_px) + " x " + std::to_string(height_px) + " px";
+  int covered = 0;
+  for (int n : coverage.corners_per_cell) covered += n > 0 ? 1 : 0;
+  L.caption = {"corners in " + std::to_string(covered) + " of the " + std::to_string(coverage.cells_across) + " x " +
+                   std::to_string(coverage.cells_down) + " cells (" +
+                   FormatPrintf("%.0f", 100.0 * coverage.fraction_covered) + "%)",
+               "empty cells tinted red; dots: the corners, lines: each view's outline (convex hull)"};
+  // The picture is as wide as the sensor and the legend, or as the caption
+  // (up to 1200 px; longer lines shrink, then are cut).
+  const int base_width = kMargin + 2 + P.sensor.width + 2 + kLegendGap + P.legend.width + kMargin;
+  double caption_width = meter.Measure(L.title, kTitleFont).width;
+  for (const std::string& line : L.caption) caption_width = std::max(caption_width, meter.Measure(line, kCaptionFont).width);
+  P.image_width = std::max(base_width, std::min(1200, static_cast<int>(std::ceil(caption_width)) + 2 * kMargin));
+  const double text_width = P.image_width - 2.0 * kMargin;
+  std::tie(L.title, L.title_font) = meter.Fit(L.title, kTitleFont, text_width, kMinTextSize);
+  const TextBox title_box = meter.Measure(L.title, L.title_font);
+  L.title_baseline = kMargin + static_cast<int>(std::ceil(title_box.height));
+  int y = L.title_baseline + static_cast<int>(std::ceil(title_box.baseline));
+  for (std::string& line : L.caption) {
+    Font font = kCaptionFont;
+    std::tie(line, font) = meter.Fit(line, kCaptionFont, text_width, kMinTextSize);
+    const TextBox box = meter.Measure(line, font);
+    y += 8 + static_cast<int>(std::ceil(box.height));
+    L.caption_fonts.push_back(font);
+    L.caption_baselines.push_back(y);
+    y += static_cast<int>(std::ceil(box.baseline));
+  }
+
+  P.sensor.x = kMargin + 2;
+  P.sensor.y = y + 18 + 2;
+  P.legend.x = P.sensor.x + P.sensor.width + 2 + kLegendGap;
+  P.legend.y = P.sensor.y;
+  const int max_rows = std::max(1, (P.sensor.height + kMargin) / kLegendRow);
+  const double legend_cap = meter.Measure("H", kLegendFont).height;
+  for (size_t v = 0; v < views.size(); ++v) {
+    const int row = static_cast<int>(v);
+    const int baseline = P.legend.y + row * kLegendRow + static_cast<int>(std::lround(0.5 * (kLegendRow + legend_cap))) - 1;
+    if (row == max_rows - 1 && views.size() > static_cast<size_t>(max_rows)) {
+      L.legend_texts.push_back("... and " + std::to_string(views.size() - v) + " more");
+      L.legend_views.push_back(-1);
+      L.legend_baselines.push_back(baseline);
+      break;
+    }
+    L.legend_texts.push_back(
+        meter.Fit(names[v], kLegendFont, P.legend.width - kLegendTextX, kLegendFont.size_px).first);
+    L.legend_views.push_back(row);
+    L.legend_baselines.push_back(baseline);
+  }
+  P.legend.height = static_cast<int>(L.legend_texts.size()) * kLegendRow;
+  P.image_height = std::max(P.sensor.y + P.sensor.height + 2, P.legend.y + P.legend.height) + kMargin;
+  return L;
+}
+
+void Draw(const PlotCanvas& c, int width_px, int height_px, const std::vector<BoardView>& views,
+          const SensorCoverage& coverage, const FullLayout& L) {
+  const CoverageImageLayout& P = L.pub;
+  c.Text(L.title, kMargin, L.title_baseline, L.title_font, kBlack);
+  for (size_t i = 0; i < L.caption.size(); ++i) {
+    c.Text(L.caption[i], kMargin, L.caption_baselines[i], L.caption_fonts[i], kDarkGrey);
+  }
+
+  // The sensor: covered cells grey, empty ones red, the grid, the outline.
+  c.FillPixels(P.sensor, kCovered);
+  for (int r = 0; r < P.cells_down; ++r) {
+    for (int col = 0; col < P.cells_across; ++col) {
+      if (coverage.corners_per_cell[static_cast<size_t>(r * P.cells_across + col)] == 0) {
+        c.FillPixels(P.Cell(r, col), kEmpty);
+      }
+    }
+  }
+  for (int col = 1; col < P.cells_across; ++col) {
+    const int x = P.Cell(0, col).x;
+    c.PixelLine(x, P.sensor.y, x, P.sensor.y + P.sensor.height - 1, kGridLine);
+  }
+  for (int r = 1; r < P.cells_down; ++r) {
+    const int y = P.Cell(r, 0).y;
+    c.PixelLine(P.sensor.x, y, P.sensor.x + P.sensor.width - 1, y, kGridLine);
+  }
+  c.FrameAround(P.sensor, kOutline);
+  c.FrameAround(PixelRect{P.sensor.x - 1, P.sensor.y - 1, P.sensor.width + 2, P.sensor.height + 2}, kOutline);
+
+  // The views: outline and corners, clipped to the sensor.
+  const double sx = static_cast<double>(P.sensor.width) / width_px;
+  const double sy = static_cast<double>(P.sensor.height) / height_px;
+  cairo_t* cr = c.cr();
+  c.ClipTo(P.sensor);
+  for (size_t v = 0; v < views.size(); ++v) {
+    std::vector<P2> pts;
+    for (const Eigen::Vector2d& p : views[v].pixels) {
+      pts.push_back(P2{P.sensor.x - 0.5 + (p.x() + 0.5) * sx, P.sensor.y - 0.5 + (p.y() + 0.5) * sy});
+    }
+    c.SetColour(ViewColour(v));
+    const std::vector<P2> hull = ConvexHull(pts);
+    if (hull.size() >= 3) {
+      cairo_set_line_width(cr, 1);
+      cairo_move_to(cr, hull[0].x, hull[0].y);
+      for (size_t k = 1; k < hull.size(); ++k) cairo_line_to(cr, hull[k].x, hull[k].y);
+      cairo_close_path(cr);
+      cairo_stroke(cr);
+    }
+    for (const P2& q : pts) {
+      cairo_new_sub_path(cr);
+      cairo_arc(cr, q.x, q.y, kDotRadius, 0, 2 * M_PI);
+    }
+    cairo_fill(cr);
+  }
+  c.Unclip();
+
+  // The legend.
+  const double legend_cap = 0.5 * kLegendRow;
+  for (size_t i = 0; i < L.legend_texts.size(); ++i) {
+    const int row_top = P.legend.y + static_cast<int>(i) * kLegendRow;
+    if (L.legend_views[i] >= 0) {
+      c.SetColour(ViewColour(static_cast<size_t>(L.legend_views[i])));
+      cairo_new_sub_path(cr);
+      cairo_arc(cr, P.legend.x + 5, row_top + legend_cap - 1, 5, 0, 2 * M_PI);
+      cairo_fill(cr);
+    }
+    c.Text(L.legend_texts[i], P.legend.x + kLegendTextX, L.legend_baselines[i], kLegendFont, kBlack);
+  }
+}
+
+Result<std::vector<unsigned char>> Render(int width_px, int height_px, const std::vector<BoardView>& views,
+                                          const SensorCoverage& coverage, PlotFormat format,
+                                          const CoverageImageOptions& options, const PlotMetadata& metadata) {
+  OPL_RETURN_IF_ERROR(ValidateArguments(width_px, height_px, coverage, options));
+  const TextMeter meter;
+  const FullLayout layout = ComputeLayout(width_px, height_px, views, coverage, options, meter);
+  Result<std::unique_ptr<PlotCanvas>> canvas = PlotCanvas::Create(
+      format, layout.pub.image_width, layout.pub.image_height, layout.title, metadata, "coverage picture");
+  if (!canvas.ok()) return canvas.status();
+  Draw(**canvas, width_px, height_px, views, coverage, layout);
+  return (*canvas)->Finish();
 }
 
 }  // namespace
@@ -91,88 +357,38 @@ Status CoverageImageOptions::Validate() const {
   return Status::Ok();
 }
 
-Result<cv::Mat> DrawCoverageImage(int width_px, int height_px, const std::vector<BoardView>& views,
-                                  const SensorCoverage& coverage, const CoverageImageOptions& options) {
-  OPL_RETURN_IF_ERROR(options.Validate());
-  if (width_px < 1 || height_px < 1 || coverage.cells_across < 1 || coverage.cells_down < 1 ||
-      coverage.corners_per_cell.size() != static_cast<size_t>(coverage.cells_across * coverage.cells_down)) {
-    return Status::InvalidArgument("DrawCoverageImage: the image size or the coverage grid is invalid");
-  }
-  const double scale = static_cast<double>(options.max_side_px) / std::max(width_px, height_px);
-  const int sw = std::max(1, static_cast<int>(std::lround(width_px * scale)));
-  const int sh = std::max(1, static_cast<int>(std::lround(height_px * scale)));
-  const int margin = 30, caption_h = 70, legend_w = 260;
-  const int W = margin + sw + margin + legend_w, H = caption_h + sh + 2 * margin;
-  cv::Mat img(H, W, CV_8UC3, cv::Scalar(255, 255, 255));
-  const cv::Point origin(margin, caption_h + margin);
-  auto to_canvas = [&](double u, double v) {
-    return cv::Point2d(origin.x + (u + 0.5) * scale, origin.y + (v + 0.5) * scale);
-  };
-  const int shift = 4;  // sub-pixel drawing
-  const double f = 1 << shift;
-  auto fixed = [&](const cv::Point2d& p) { return cv::Point(static_cast<int>(std::lround(p.x * f)), static_cast<int>(std::lround(p.y * f))); };
+PixelRect CoverageImageLayout::Cell(int row, int col) const {
+  if (row < 0 || row >= cells_down || col < 0 || col >= cells_across) return PixelRect{};
+  const int x0 = sensor.x + sensor.width * col / cells_across;
+  const int x1 = sensor.x + sensor.width * (col + 1) / cells_across;
+  const int y0 = sensor.y + sensor.height * row / cells_down;
+  const int y1 = sensor.y + sensor.height * (row + 1) / cells_down;
+  return PixelRect{x0, y0, x1 - x0, y1 - y0};
+}
 
-  // Sensor: light grey, empty cells tinted red, the grid, the outline.
-  cv::rectangle(img, cv::Rect(origin.x, origin.y, sw, sh), cv::Scalar(245, 245, 245), cv::FILLED);
-  for (int r = 0; r < coverage.cells_down; ++r) {
-    for (int c = 0; c < coverage.cells_across; ++c) {
-      const int x0 = origin.x + sw * c / coverage.cells_across, x1 = origin.x + sw * (c + 1) / coverage.cells_across;
-      const int y0 = origin.y + sh * r / coverage.cells_down, y1 = origin.y + sh * (r + 1) / coverage.cells_down;
-      if (coverage.corners_per_cell[static_cast<size_t>(r * coverage.cells_across + c)] == 0) {
-        cv::rectangle(img, cv::Rect(x0, y0, x1 - x0, y1 - y0), cv::Scalar(215, 215, 255), cv::FILLED);
-      }
-      cv::rectangle(img, cv::Rect(x0, y0, x1 - x0 + 1, y1 - y0 + 1), cv::Scalar(210, 210, 210), 1);
-    }
+Result<CoverageImageLayout> LayoutCoverageImage(int width_px, int height_px, const std::vector<BoardView>& views,
+                                                const SensorCoverage& coverage,
+                                                const CoverageImageOptions& options) {
+  OPL_RETURN_IF_ERROR(ValidateArguments(width_px, height_px, coverage, options));
+  try {
+    const TextMeter meter;
+    return ComputeLayout(width_px, height_px, views, coverage, options, meter).pub;
+  } catch (const std::exception& e) {  // std::bad_alloc
+    return Status::IoError(std::string("coverage picture: cannot lay out the figure: ") + e.what());
   }
-  cv::rectangle(img, cv::Rect(origin.x - 1, origin.y - 1, sw + 2, sh + 2), cv::Scalar(40, 40, 40), 2);
+}
 
-  // Views: hull outline and corners.
-  for (size_t v = 0; v < views.size(); ++v) {
-    const cv::Scalar colour = ViewColour(v);
-    std::vector<cv::Point2f> pts;
-    for (const Eigen::Vector2d& p : views[v].pixels) {
-      const cv::Point2d q = to_canvas(p.x(), p.y());
-      pts.emplace_back(static_cast<float>(q.x), static_cast<float>(q.y));
-    }
-    if (pts.size() >= 3) {
-      std::vector<cv::Point2f> hull;
-      cv::convexHull(pts, hull);
-      std::vector<cv::Point> poly;
-      for (const cv::Point2f& h : hull) poly.push_back(fixed(h));
-      cv::polylines(img, poly, true, colour, 1, cv::LINE_AA, shift);
-    }
-    for (const cv::Point2f& q : pts) cv::circle(img, fixed(q), static_cast<int>(2.5 * f), colour, cv::FILLED, cv::LINE_AA, shift);
+Result<std::vector<unsigned char>> RenderCoverageImage(int width_px, int height_px,
+                                                       const std::vector<BoardView>& views,
+                                                       const SensorCoverage& coverage, PlotFormat format,
+                                                       const CoverageImageOptions& options,
+                                                       const PlotMetadata& metadata) {
+  try {
+    return Render(width_px, height_px, views, coverage, format, options, metadata);
+  } catch (const std::exception& e) {  // std::bad_alloc
+    return Status::IoError(std::string("coverage picture: cannot render the ") + PlotFormatName(format) + ": " +
+                           e.what());
   }
-
-  // Caption.
-  const auto font = cv::FONT_HERSHEY_SIMPLEX;
-  const std::string line1 = (options.title.empty() ? std::string("Sensor coverage") : options.title) + ": " +
-                            std::to_string(views.size()) + " views, " + std::to_string(coverage.num_corners) +
-                            " corners, image " + std::to_string(width_px) + " x " + std::to_string(height_px) + " px";
-  const std::string line2 = "corners in " + FormatPrintf("%.0f", 100.0 * coverage.fraction_covered) + "% of the " +
-                            std::to_string(coverage.cells_across) + " x " + std::to_string(coverage.cells_down) +
-                            " cells; empty cells tinted red; dots: corners, lines: each view's outline";
-  cv::putText(img, line1, cv::Point(margin, 28), font, 0.6, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
-  cv::putText(img, line2, cv::Point(margin, 54), font, 0.45, cv::Scalar(60, 60, 60), 1, cv::LINE_AA);
-
-  // Legend: as many views as fit, then "... and N more".
-  const int lx = origin.x + sw + margin, line_h = 18;
-  const int max_lines = std::max(1, (sh + margin) / line_h);
-  for (size_t v = 0; v < views.size(); ++v) {
-    const int y = origin.y + static_cast<int>(v) * line_h;
-    if (static_cast<int>(v) == max_lines - 1 && views.size() > static_cast<size_t>(max_lines)) {
-      cv::putText(img, "... and " + std::to_string(views.size() - v) + " more", cv::Point(lx, y + 12), font, 0.4,
-                  cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
-      break;
-    }
-    cv::circle(img, cv::Point(lx + 6, y + 8), 5, ViewColour(v), cv::FILLED, cv::LINE_AA);
-    std::string name = views[v].name;
-    if (const size_t slash = name.find_last_of('/'); slash != std::string::npos) name = name.substr(slash + 1);
-    if (name.size() > 30) name = name.substr(0, 27) + "...";
-    cv::putText(img, name + " (" + std::to_string(views[v].pixels.size()) + ")", cv::Point(lx + 16, y + 12), font,
-                0.4, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
-  }
-  return img;
 }
 
 }  // namespace opl

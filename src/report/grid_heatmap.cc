@@ -239,7 +239,8 @@ FullLayout ComputeLayout(const GridHeatmap& h, const TextMeter& meter) {
   L.subtitle = h.subtitle;
   if (L.pub.all_at_noise_level) {
     L.noise_text = "All beams at the noise level (<= " + FormatNumber(h.noise_level) +
-                   (h.value_unit.empty() ? "" : " " + h.value_unit) + ")";
+                   (h.value_unit.empty() ? "" : " " + h.value_unit) +
+                   (h.noise_note.empty() ? "" : "; " + h.noise_note) + ")";
   }
   const TextBox view = meter.Measure(L.view_text, kNoteFont);
 

@@ -111,6 +111,18 @@ Status ValidateLinePlot(const LinePlot& plot) {
         if (PointUsable(s, k)) ++usable;
       }
     }
+    if (!p.x_categories.empty() && p.log_x) {
+      return Status::InvalidArgument(pname + ": x_categories need a linear x axis (log_x is set)");
+    }
+    for (size_t c = 0; c < p.x_categories.size(); ++c) {
+      const PlotCategory& cat = p.x_categories[c];
+      const std::string cname = pname + ": x_categories[" + std::to_string(c) + "]" + Quoted(cat.label);
+      if (!std::isfinite(cat.x) || (c > 0 && !(cat.x > p.x_categories[c - 1].x))) {
+        return Status::InvalidArgument(cname + ": x = " + FormatNumber(cat.x) +
+                                       " must be finite and greater than the one before");
+      }
+      if (cat.label.empty()) return Status::InvalidArgument(cname + ": the label must not be empty");
+    }
     if (usable == 0) {
       return Status::InvalidArgument(pname + ": no finite points to plot" +
                                      (p.series.empty() ? " (no series)" : ""));
@@ -185,6 +197,23 @@ AxisTicks MakeTicks(double lo, double hi, bool log, int max_ticks) {
     }
   }
   for (double v : t.major) t.labels.push_back(FormatTickLabel(v, log ? 0.0 : step));
+  return t;
+}
+
+// A categorical axis: the categories' positions, each name cut to the space
+// between it and its neighbours (10 px apart), not shrunk.
+AxisTicks CategoryTicks(const std::vector<PlotCategory>& categories, const LinePlotPanelLayout& L,
+                        const TextMeter& meter) {
+  AxisTicks t;
+  for (size_t c = 0; c < categories.size(); ++c) {
+    double room = L.plot_area.width;
+    if (c > 0) room = std::min(room, L.PixelX(categories[c].x) - L.PixelX(categories[c - 1].x));
+    if (c + 1 < categories.size()) {
+      room = std::min(room, L.PixelX(categories[c + 1].x) - L.PixelX(categories[c].x));
+    }
+    t.major.push_back(categories[c].x);
+    t.labels.push_back(meter.Fit(categories[c].label, kTickFont, room - 10, kTickFont.size_px).first);
+  }
   return t;
 }
 
@@ -263,7 +292,18 @@ Result<FullLinePlotLayout> ComputeLinePlotLayout(const LinePlot& plot, const Tex
         }
       }
     }
-    std::tie(L.x_min, L.x_max) = AxisRange(x_lo, x_hi, p.log_x);
+    if (p.x_categories.empty()) {
+      std::tie(L.x_min, L.x_max) = AxisRange(x_lo, x_hi, p.log_x);
+    } else {
+      // The categories with half their smallest spacing on each side.
+      double half = 0.5;
+      for (size_t c = 1; c < p.x_categories.size(); ++c) {
+        const double spacing = p.x_categories[c].x - p.x_categories[c - 1].x;
+        half = c == 1 ? 0.5 * spacing : std::min(half, 0.5 * spacing);
+      }
+      L.x_min = std::min(x_lo, p.x_categories.front().x - half);
+      L.x_max = std::max(x_hi, p.x_categories.back().x + half);
+    }
     std::tie(L.y_min, L.y_max) = AxisRange(y_lo, y_hi, p.log_y);
 
     // Vertical layout.
@@ -332,7 +372,9 @@ Result<FullLinePlotLayout> ComputeLinePlotLayout(const LinePlot& plot, const Tex
                                        " leaves only " + std::to_string(L.plot_area.width) +
                                        " px for the plot; make it larger");
       }
-      for (int max_ticks = std::max(2, L.plot_area.width / 60); max_ticks >= 2; --max_ticks) {
+      if (!p.x_categories.empty()) xt = CategoryTicks(p.x_categories, L, meter);
+      for (int max_ticks = std::max(2, L.plot_area.width / 60);
+           p.x_categories.empty() && max_ticks >= 2; --max_ticks) {
         xt = MakeTicks(L.x_min, L.x_max, p.log_x, max_ticks);
         bool ok = true;
         for (size_t k = 1; k < xt.major.size() && ok; ++k) {

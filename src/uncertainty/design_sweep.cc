@@ -326,19 +326,16 @@ LinePlot DesignSweep::ToPlot() const {
                                      " weighting)");
   PlotPanel absolute, relative;
   absolute.title = "standard deviation of L";
-  std::string x_label = SweepParameterLabel(parameter);
+  absolute.x_label = relative.x_label = SweepParameterLabel(parameter);
   if (categorical) {
-    // The API has numeric axes only: the categories sit at 1, 2, ... and
-    // the label says which is which.
-    std::string names;
+    // A categorical axis: a named tick at 1, 2, ... per value, in sweep order.
     for (size_t i = 0; i < points.size(); ++i) {
       std::string name = SweepValueText(parameter, points[i].value);
       std::replace(name.begin(), name.end(), '_', ' ');
-      names += (i ? ", " : "") + std::to_string(i + 1) + " = " + name;
+      absolute.x_categories.push_back(PlotCategory{static_cast<double>(i + 1), name});
     }
-    x_label += " (" + names + ")";
+    relative.x_categories = absolute.x_categories;
   }
-  absolute.x_label = relative.x_label = x_label;
   absolute.y_label = "std of L (mm)";
   relative.title = "relative uncertainty of L";
   relative.y_label = "u(L) / L (ppm)";

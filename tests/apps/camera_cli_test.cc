@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <string>
 #include <vector>
 
@@ -93,6 +94,38 @@ TEST(CameraCli, CalibratesPhotosIntoACamerasJsonAndAReport) {
   EXPECT_EQ(report["held_fixed"], nlohmann::json::array({"k3"}));
   const cv::Mat coverage = cv::imread(dir.File("rep/coverage.png"));
   EXPECT_FALSE(coverage.empty());
+  EXPECT_NE(r.out.find("report: " + dir.File("rep/camera_report.json") + ", " + dir.File("rep/coverage.png")),
+            std::string::npos)
+      << r.out;
+}
+
+// --coverage-format svg|pdf: the picture in that format (and no PNG), with
+// the run's provenance: the SVG's <metadata> element, the PDF's Creator.
+TEST(CameraCli, CoverageAsSvgOrPdfCarriesTheProvenance) {
+  const std::vector<std::string> photos = Photos();
+  if (photos.size() < 10) GTEST_SKIP() << "opencv-doc's sample photographs not installed";
+  TempDir dir;
+  const std::string base = "calibrate --images " + Join(photos) + " --chessboard 9x6 --square-mm 25 --out '" +
+                           dir.File("cams.json") + "' --report '" + dir.File("rep") + "' --coverage-format ";
+  RunResult r = Camera(base + "svg");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  // (Read raw: testing_support::ReadOutput strips the provenance.)
+  std::ifstream svg_file(dir.File("rep/coverage.svg"), std::ios::binary);
+  const std::string svg((std::istreambuf_iterator<char>(svg_file)), std::istreambuf_iterator<char>());
+  EXPECT_NE(svg.find("<title>Camera 'cam0': 13 views, 702 corners, image 640 x 480 px</title>"),
+            std::string::npos);
+  EXPECT_NE(svg.find("<metadata id=\"opl-provenance\">{\"tool\":\"opl_camera\""), std::string::npos);
+  EXPECT_FALSE(std::filesystem::exists(dir.File("rep/coverage.png")));
+  r = Camera(base + "pdf");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  std::ifstream pdf_file(dir.File("rep/coverage.pdf"), std::ios::binary);
+  const std::string pdf((std::istreambuf_iterator<char>(pdf_file)), std::istreambuf_iterator<char>());
+  EXPECT_EQ(pdf.rfind("%PDF-", 0), 0u);
+  // "OPL opl_camera " in UTF-16 (cairo's encoding when the text has
+  // parentheses: "(commit ...)").
+  EXPECT_NE(pdf.find("/Creator <FEFF004F0050004C0020006F0070006C005F00630061006D006500720061"), std::string::npos);
+  EXPECT_NE(pdf.find("/Subject <FEFF007B00220074006F006F006C0022"), std::string::npos);  // {"tool"
+  EXPECT_NE(r.out.find(dir.File("rep/coverage.pdf")), std::string::npos) << r.out;
 }
 
 TEST(CameraCli, IntoASceneReplacesOneCameraAndKeepsTheRest) {
@@ -180,6 +213,14 @@ TEST(CameraCli, ErrorsAreOneLineWithTheirExitCodeAndNoOutput) {
   ExpectOneLineError(r, "--chessboard: expected inner corners as COLSxROWS");
   r = Camera("calibrate --images " + Join(blanks) + " --chessboard 9x6 --square-mm 25 --out '" + blanks[0] + "'");
   EXPECT_EQ(r.exit_code, 2);
+  r = Camera("calibrate --images " + Join(blanks) + " --chessboard 9x6 --square-mm 25" + out +
+             " --coverage-format jpg");
+  EXPECT_EQ(r.exit_code, 2);
+  ExpectOneLineError(r, "--coverage-format: jpg not in {png,svg,pdf}");
+  r = Camera("calibrate --images " + Join(blanks) + " --chessboard 9x6 --square-mm 25 --out '" +
+             dir.File("cams.json") + "' --coverage-format svg");
+  EXPECT_EQ(r.exit_code, 2);
+  ExpectOneLineError(r, "--coverage-format requires --report");
   // Nothing was written by any of these.
   EXPECT_FALSE(std::filesystem::exists(dir.File("cams.json")));
   EXPECT_FALSE(std::filesystem::exists(dir.File("rep")));

@@ -120,6 +120,10 @@ TEST(SimulateSweepCli, Errors) {
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_EQ(r.err, "opl_simulate: --plot " + dir.File("s.jpg") +
                        ": a figure must be named .png, .svg or .pdf (got '.jpg')\n");
+  // layout has named values: no log axis for them.
+  r = Simulate(base + " --param layout --values side_by_side,staggered --log-x" + out);
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_EQ(r.err, "opl_simulate: --log-x: --param layout has named values, not a numeric axis\n");
   r = Simulate(base + " --param noise_mm --values 0.1 --weighting best" + out);
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_EQ(r.out, "");

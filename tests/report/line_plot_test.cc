@@ -472,6 +472,56 @@ TEST(LinePlotTest, TickLabelsDoNotOverlap) {
   for (int x = img.cols - 5; x < img.cols; ++x) EXPECT_TRUE(column_white(x)) << x;
 }
 
+// A categorical x axis: ticks exactly at the categories with their names,
+// the range half a spacing beyond them, no numeric or minor ticks; in the
+// PNG a tick mark under each category and none between them.
+TEST(LinePlotTest, CategoricalAxisHasNamedTicksOnly) {
+  PlotPanel panel = Panel("layouts", {Series("MC", {1, 2, 3}, {0.5, 0.7, 0.6}, PlotSeries::Style::kMarkers),
+                                      Series("FO", {0.88, 1.88, 2.88}, {0.5, 0.7, 0.6},
+                                             PlotSeries::Style::kMarkers)});
+  panel.x_label = "layout";
+  panel.x_categories = {{1, "side by side"}, {2, "staggered"}, {3, "a very long layout name to be cut"}};
+  LinePlot plot = OnePanel(panel);
+  plot.panel_width_px = 480;
+  Result<LinePlotLayout> layout = LayoutLinePlot(plot);
+  ASSERT_TRUE(layout.ok()) << layout.status().ToString();
+  const LinePlotPanelLayout& p = layout->panels[0];
+  EXPECT_EQ(p.x_ticks, (std::vector<double>{1, 2, 3}));
+  ASSERT_EQ(p.x_tick_labels.size(), 3u);
+  EXPECT_EQ(p.x_tick_labels[0], "side by side");
+  EXPECT_EQ(p.x_tick_labels[1], "staggered");
+  // Cut with "..." to the space between categories (one third of the plot).
+  EXPECT_EQ(p.x_tick_labels[2].substr(p.x_tick_labels[2].size() - 3), "...");
+  EXPECT_LT(p.x_tick_labels[2].size(), 25u) << p.x_tick_labels[2];
+  EXPECT_TRUE(p.x_minor_ticks.empty());
+  EXPECT_DOUBLE_EQ(p.x_min, 0.5);
+  EXPECT_DOUBLE_EQ(p.x_max, 3.5);
+
+  const cv::Mat img = Decode(plot);
+  ASSERT_FALSE(img.empty());
+  const int tick_row = p.plot_area.y + p.plot_area.height + 2;  // inside the tick marks
+  const Rgb black{0, 0, 0};
+  for (double x : {1.0, 2.0, 3.0}) {
+    EXPECT_EQ(PixelAt(img, static_cast<int>(std::lround(p.PixelX(x))), tick_row), black) << x;
+  }
+  // Between categories (where numeric ticks at 0.5 steps would be): no
+  // tick, and a white column through the label band (the names do not meet).
+  const int band_top = p.plot_area.y + p.plot_area.height + 7;
+  for (double x : {1.5, 2.5}) {
+    const int px = static_cast<int>(std::lround(p.PixelX(x)));
+    EXPECT_EQ(PixelAt(img, px, tick_row), kWhiteRgb) << x;
+    for (int y = band_top; y <= band_top + 14; ++y) EXPECT_EQ(PixelAt(img, px, y), kWhiteRgb) << x << " " << y;
+  }
+  // A single category: the range 0.5 around it.
+  panel.x_categories = {{1, "one"}};
+  panel.series = {Series("MC", {1}, {2}, PlotSeries::Style::kMarkers)};
+  Result<LinePlotLayout> one = LayoutLinePlot(OnePanel(panel));
+  ASSERT_TRUE(one.ok());
+  EXPECT_DOUBLE_EQ(one->panels[0].x_min, 0.5);
+  EXPECT_DOUBLE_EQ(one->panels[0].x_max, 1.5);
+  EXPECT_EQ(one->panels[0].x_tick_labels, (std::vector<std::string>{"one"}));
+}
+
 // --- Errors ------------------------------------------------------------------------
 
 void ExpectInvalid(const LinePlot& plot, const std::string& message) {
@@ -534,6 +584,17 @@ TEST(LinePlotErrorsTest, Messages) {
                 "LinePlot.panels[0] \"p\": no finite points to plot");
   ExpectInvalid(OnePanel(Panel("p", {})),
                 "LinePlot.panels[0] \"p\": no finite points to plot (no series)");
+  PlotPanel categories = Panel("p", {Series("a", {1, 2}, {1, 1})});
+  categories.x_categories = {{1, "a"}, {1, "b"}};
+  ExpectInvalid(OnePanel(categories),
+                "LinePlot.panels[0] \"p\": x_categories[1] \"b\": x = 1 must be finite and greater than "
+                "the one before");
+  categories.x_categories = {{1, ""}};
+  ExpectInvalid(OnePanel(categories), "LinePlot.panels[0] \"p\": x_categories[0]: the label must not be empty");
+  categories.x_categories = {{1, "a"}};
+  categories.log_x = true;
+  ExpectInvalid(OnePanel(categories),
+                "LinePlot.panels[0] \"p\": x_categories need a linear x axis (log_x is set)");
   // An untitled panel is named by its y label.
   PlotPanel untitled = Panel("", {});
   ExpectInvalid(OnePanel(untitled),
@@ -628,6 +689,17 @@ TEST(LinePlotSamples, WriteWhenAsked) {
   for (const char* ext : {"png", "svg", "pdf"}) {
     ASSERT_TRUE(WriteLinePlot(angle, std::string(dir) + "/log_10_45." + ext).ok());
   }
+
+  LinePlot categorical;
+  categorical.title = "Categorical x axis";
+  PlotPanel cp = Panel("std of L", {Series("first order", {0.88, 1.88, 2.88}, {0.020, 0.031, 0.026},
+                                           PlotSeries::Style::kMarkers),
+                                    Series("Monte Carlo", {1, 2, 3}, {0.021, 0.030, 0.027},
+                                           PlotSeries::Style::kMarkers)});
+  cp.x_label = "layout";
+  cp.x_categories = {{1, "side by side"}, {2, "staggered"}, {3, "a very long layout name to be cut"}};
+  categorical.panels = {cp};
+  ASSERT_TRUE(WriteLinePlot(categorical, std::string(dir) + "/categorical.png").ok());
 }
 
 }  // namespace

@@ -247,8 +247,9 @@ TEST(DesignSweepTest, EveryParameterHasAHumanLabel) {
 }
 
 // layout is categorical: markers only at 1, 2 (first order and bound beside
-// the Monte Carlo), the categories named in the x label; the same designs
-// as stagger_deg at 0 and 45.
+// the Monte Carlo), a categorical x axis whose ticks at 1 and 2 carry the
+// names (and no numeric tick between them); the same designs as stagger_deg
+// at 0 and 45.
 TEST(DesignSweepTest, LayoutSweepIsDrawnAsCategories) {
   MonteCarloOptions options = Options();
   options.iterations = 40;
@@ -265,7 +266,12 @@ TEST(DesignSweepTest, LayoutSweepIsDrawnAsCategories) {
   const LinePlot plot = sweep->ToPlot();
   ASSERT_EQ(plot.panels.size(), 2u);
   for (const PlotPanel& panel : plot.panels) {
-    EXPECT_EQ(panel.x_label, "layout (1 = staggered, 2 = side by side)");
+    EXPECT_EQ(panel.x_label, "layout");
+    ASSERT_EQ(panel.x_categories.size(), 2u);
+    EXPECT_EQ(panel.x_categories[0].x, 1.0);
+    EXPECT_EQ(panel.x_categories[0].label, "staggered");
+    EXPECT_EQ(panel.x_categories[1].x, 2.0);
+    EXPECT_EQ(panel.x_categories[1].label, "side by side");
     ASSERT_EQ(panel.series.size(), 3u);
     for (const PlotSeries& s : panel.series) EXPECT_EQ(s.style, PlotSeries::Style::kMarkers);
     EXPECT_EQ(panel.series[2].label, "Monte Carlo");
@@ -281,7 +287,15 @@ TEST(DesignSweepTest, LayoutSweepIsDrawnAsCategories) {
   EXPECT_EQ(sweep->ToCsv().substr(sweep->ToCsv().find('\n') + 1, 11), "layout,45,A");
   EXPECT_EQ(ApplySweepValue(Staggered(), SweepParameter::kLayout, 30).status().message(),
             "layout = 30: must be 0 (side_by_side) or 45 (staggered)");
-  EXPECT_TRUE(LayoutLinePlot(plot).ok());
+  Result<LinePlotLayout> layout = LayoutLinePlot(plot);
+  ASSERT_TRUE(layout.ok()) << layout.status().message();
+  for (const LinePlotPanelLayout& panel : layout->panels) {
+    EXPECT_EQ(panel.x_ticks, (std::vector<double>{1.0, 2.0}));
+    EXPECT_EQ(panel.x_tick_labels, (std::vector<std::string>{"staggered", "side by side"}));
+    EXPECT_TRUE(panel.x_minor_ticks.empty());
+    EXPECT_DOUBLE_EQ(panel.x_min, 0.5);
+    EXPECT_DOUBLE_EQ(panel.x_max, 2.5);
+  }
 }
 
 }  // namespace

@@ -21,7 +21,8 @@
 //     orientation and the numbering rule are drawn around the grid;
 //   - `title` and `subtitle` head the image; when every beam with data is at
 //     or below `noise_level`, a line under them says so in bold green:
-//     "All beams at the noise level (<= 0.02 mm)" (a map of noise has no
+//     "All beams at the noise level (<= 0.02 mm)", with `noise_note` after
+//     the level when set (a map of noise has no
 //     pattern to read, and its colours span only the noise);
 //   - the colour scale runs from 0 to the largest value, or to `scale_max`
 //     when set: maps that share one `scale_max` compare by colour (opl_calibrate
@@ -63,6 +64,9 @@ struct GridHeatmap {
   // Why the scale ends where it does, shown after the range in the colour
   // note, e.g. "one scale for sources A, B"; optional.
   std::string scale_note{};
+  // Where the noise level comes from, shown in the noise-level line after
+  // the level, e.g. "from the session's noise, 95 % family-wise"; optional.
+  std::string noise_note{};
 };
 
 // The largest finite value over all `heatmaps` (1 if none is > 0): the

@@ -28,6 +28,8 @@
 //     plus, cross), 2 px anti-aliased lines; NaN in x or y is a gap (no marker,
 //     the line is broken); error bars +-y_err with caps; everything is clipped
 //     to the plot area;
+//   - or a categorical x axis (PlotPanel::x_categories): ticks, grid lines
+//     and names at the given positions only;
 //   - a legend (white box, grey border; one row per series with a non-empty
 //     label, its line/marker swatch and the label) in the corner of the plot
 //     area that covers the fewest data points and line pixels (ties: top
@@ -57,12 +59,26 @@ struct PlotSeries {
   enum class Style { kLineMarkers, kLine, kMarkers, kDashed } style = Style::kLineMarkers;
 };
 
+// A named position on a categorical x axis (PlotPanel::x_categories).
+struct PlotCategory {
+  double x = 0;       // where its tick (and its data) sit, e.g. 1, 2, ...
+  std::string label;  // the tick's text, e.g. "side by side"
+};
+
 struct PlotPanel {
   std::string title;    // optional
   std::string x_label;  // with units, e.g. "spot noise sigma (mm)"
   std::string y_label;  // with units, e.g. "std of L (mm)"
   bool log_x = false, log_y = false;
   std::vector<PlotSeries> series;
+  // A categorical x axis: when not empty, the x ticks are exactly these
+  // positions, labelled with these names (each cut with "..." to fit the
+  // space between it and its neighbours), with no numeric or minor ticks.
+  // The x range spans the categories plus half their smallest spacing on
+  // each side (0.5 for one category), widened to the data if a point lies
+  // beyond. Needs a linear x axis; positions finite and increasing, labels
+  // not empty.
+  std::vector<PlotCategory> x_categories{};
 };
 
 struct LinePlot {
@@ -144,6 +160,9 @@ struct LinePlotLayout {
 //   "LinePlot.panels[0] \"std of L\": series[0] \"MC\": y[3] is infinite (use NaN for a gap)"
 //   "LinePlot.panels[0] \"std of L\": log x axis needs x > 0: series[1] \"MC\" has x[0] = 0"
 //   "LinePlot.panels[0] \"std of L\": no finite points to plot"
+//   "LinePlot.panels[0] \"std of L\": x_categories need a linear x axis (log_x is set)"
+//   "LinePlot.panels[0] \"std of L\": x_categories[1] \"b\": x = 1 must be finite and greater than the one before"
+//   "LinePlot.panels[0] \"std of L\": x_categories[0]: the label must not be empty"
 Result<LinePlotLayout> LayoutLinePlot(const LinePlot& plot);
 
 // Renders the figure in `format` (the file's bytes): PNG 8-bit RGB, one

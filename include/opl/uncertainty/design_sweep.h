@@ -64,8 +64,8 @@ const std::vector<SweepParameter>& AllSweepParameters();
 const char* SweepParameterName(SweepParameter parameter);
 // What a reader of a plot sees (one table, src/uncertainty/design_sweep.cc):
 // the quantity in words with its unit, e.g. "fan full angle (deg)" for
-// full_angle_deg; for layout just "layout" (DesignSweep::ToPlot adds the
-// categories).
+// full_angle_deg; for layout just "layout" (DesignSweep::ToPlot names the
+// categories at the axis's ticks).
 std::string SweepParameterLabel(SweepParameter parameter);
 // The quantity in words without its unit, for titles: "fan full angle".
 std::string SweepParameterNoun(SweepParameter parameter);
@@ -116,8 +116,9 @@ struct DesignSweep {
   // (SweepParameterLabel). A categorical sweep (layout) has the values at
   // x = 1, 2, ... in sweep order, every series as markers only (the Monte
   // Carlo at x, the first order at x - 0.12 and the bound at x + 0.12, so
-  // that equal values stay apart), and the x label names the categories:
-  // "layout (1 = side by side, 2 = staggered)".
+  // that equal values stay apart), and the x axis is categorical
+  // (PlotPanel::x_categories): ticks at 1, 2, ... named by the values
+  // ("side by side", "staggered"), no numeric ticks; the x label is "layout".
   LinePlot ToPlot() const;
 };
 

@@ -104,6 +104,19 @@
 
 namespace opl {
 
+// Where IdentifySpots stands (IdentifyOptions::progress). The search ends
+// when every source is found or the seed budgets run out, so there is no
+// total to count towards: seeds_tried counts the seeds and derived crosses
+// tried so far (both passes), and the other fields what they found.
+struct IdentifyProgress {
+  int seeds_tried = 0;
+  int sources_found = 0;    // of num_sources, found without ambiguity
+  int num_sources = 0;
+  int points_assigned = 0;  // of points (the unassigned spots given)
+  int points = 0;
+  bool finished = false;    // the last call, with the result's counts
+};
+
 struct IdentifyOptions {
   // Final assignment gate, in robust noise standard deviations: a point is
   // assigned to a beam when the angle between its direction (seen from the
@@ -176,23 +189,10 @@ struct IdentifyOptions {
   // first seed, after every seed tried, and once at the end with the final
   // counts. For a progress display of large point sets (the tools draw it on
   // a terminal); it must not call back into the identification. Empty: none.
-  std::function<void(const struct IdentifyProgress&)> progress{};
+  std::function<void(const IdentifyProgress&)> progress{};
 
   // Checks every field; the message names the field, its value and the rule.
   Status Validate() const;
-};
-
-// Where IdentifySpots stands (IdentifyOptions::progress). The search ends
-// when every source is found or the seed budgets run out, so there is no
-// total to count towards: seeds_tried counts the seeds and derived crosses
-// tried so far (both passes), and the other fields what they found.
-struct IdentifyProgress {
-  int seeds_tried = 0;
-  int sources_found = 0;    // of num_sources, found without ambiguity
-  int num_sources = 0;
-  int points_assigned = 0;  // of points (the unassigned spots given)
-  int points = 0;
-  bool finished = false;    // the last call, with the result's counts
 };
 
 enum class IdentifyOutcome { kFound, kNotFound, kAmbiguous };

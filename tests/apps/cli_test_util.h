@@ -20,11 +20,13 @@ struct RunResult {
   std::string out, err;
 };
 
-// Runs `exe args` (args already shell-quoted where needed).
-inline RunResult Run(const std::string& exe, const std::string& args) {
+// Runs `prefix 'exe' args` through the shell (args already shell-quoted
+// where needed), capturing stdout and stderr.
+inline RunResult RunInShell(const std::string& prefix, const std::string& exe,
+                            const std::string& args) {
   testing_support::TempDir capture;
   const std::string out = capture.File("stdout"), err = capture.File("stderr");
-  const std::string command = "'" + exe + "' " + args + " >'" + out + "' 2>'" + err + "'";
+  const std::string command = prefix + "'" + exe + "' " + args + " >'" + out + "' 2>'" + err + "'";
   const int status = std::system(command.c_str());
   RunResult r;
   r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
@@ -33,22 +35,19 @@ inline RunResult Run(const std::string& exe, const std::string& args) {
   return r;
 }
 
+// Runs `exe args` (args already shell-quoted where needed).
+inline RunResult Run(const std::string& exe, const std::string& args) {
+  return RunInShell("", exe, args);
+}
+
 // Runs `exe args` as Run does, with every file it writes limited to
 // `max_file_bytes` (rounded down to 512-byte blocks; the shell's `ulimit -f`,
 // with SIGXFSZ ignored so a write past it fails with EFBIG, as on a full
 // disk, instead of killing the process).
 inline RunResult RunWithFileSizeLimit(const std::string& exe, const std::string& args,
                                       long max_file_bytes) {
-  testing_support::TempDir capture;
-  const std::string out = capture.File("stdout"), err = capture.File("stderr");
-  const std::string command = "trap '' XFSZ; ulimit -f " + std::to_string(max_file_bytes / 512) +
-                              " && '" + exe + "' " + args + " >'" + out + "' 2>'" + err + "'";
-  const int status = std::system(command.c_str());
-  RunResult r;
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  r.out = testing_support::ReadAll(out);
-  r.err = testing_support::ReadAll(err);
-  return r;
+  return RunInShell("trap '' XFSZ; ulimit -f " + std::to_string(max_file_bytes / 512) + " && ",
+                    exe, args);
 }
 
 inline RunResult Measure(const std::string& args) { return Run(OPL_MEASURE_EXE, args); }

@@ -28,17 +28,28 @@ void Identifier::Hypotheses(int s, const Seed& seed, std::vector<Hypothesis>* ou
   const std::array<Eigen::Vector3d, 3> f = {idx.Dir(L.x(), L.y()), idx.Dir(L.x() + 1, L.y()),
                                             idx.Dir(L.x(), L.y() + 1)};
   std::array<PoseRt, 4> roots;
-  int num_roots = SolveP3P(f, X, &roots);
-  if (PatchPose(s, seed, L, 0, BestOnPatch(s, seed, L, 0, roots, num_roots), &roots[0])) num_roots = 1;
+  int num_roots = 0;
+  if (seed.grown.empty()) {
+    num_roots = SolveP3P(f, X, &roots);
+    if (PatchPose(s, seed, L, 0, BestOnPatch(s, seed, L, 0, roots, num_roots), &roots[0])) num_roots = 1;
+  } else {
+    // A grown seed: its nodes' offsets are the histogram (one pass, below).
+    num_roots = 1;
+  }
   using Hist = Hypothesis;
   std::vector<Hist>& hist = *out;
   std::vector<Eigen::Vector2i> offsets;
   std::vector<int> diff(static_cast<size_t>(n + 1) * (n + 1));
   for (int root = 0; root < num_roots; ++root) {
-    const PoseRt& P = roots[root];
-    if (!P.R.allFinite() || !P.t.allFinite()) continue;
     offsets.clear();
-    for (int i = 0; i < pool_.size(); ++i) {
+    if (!seed.grown.empty()) {
+      for (const auto& [i, o] : seed.grown) {
+        if (Eligible(i, s)) offsets.push_back(o);
+      }
+    }
+    const PoseRt& P = roots[root];
+    if (seed.grown.empty() && (!P.R.allFinite() || !P.t.allFinite())) continue;
+    for (int i = 0; i < pool_.size() && seed.grown.empty(); ++i) {
       if (!Eligible(i, s)) continue;
       const Eigen::Vector3d q = P.R * pool_.p[i] + P.t;
       if (!(q.x() > 0.0)) continue;
@@ -159,13 +170,21 @@ void Identifier::Candidates(const Seed& seed, std::vector<Hypothesis> hyps, std:
                                                idx.Dir(B.x(), B.y())};
     std::array<PoseRt, 4> poses;
     int np = SolveP3P(fb, X, &poses);
-    if (PatchPose(s, seed, h.L0, h.g, BestOnPatch(s, seed, h.L0, h.g, poses, np), &poses[0])) np = 1;
+    if (seed.grown.empty()) {
+      if (PatchPose(s, seed, h.L0, h.g, BestOnPatch(s, seed, h.L0, h.g, poses, np), &poses[0])) np = 1;
+    } else {
+      PoseRt grown_pose;
+      if (GrownPatchPose(s, seed, h.L0, h.g, poses, np, &grown_pose)) poses[0] = grown_pose, np = 1;
+    }
     for (int k = 0; k < np; ++k) {
       if (!poses[k].R.allFinite() || !poses[k].t.allFinite()) continue;
       const int score = static_cast<int>(std::lround(Score(s, poses[k], gate, eligible[s]) * scale[s]));
       if (score >= options_.min_spots) {
         if (score > best_score) best = out->size();
-        out->push_back({s, poses[k], score, h.L0, true});
+        Candidate c{s, poses[k], score, h.L0, true};
+        c.seed_point = seed.p0;
+        c.seed_step = std::max((X[1] - X[0]).norm(), (X[2] - X[0]).norm());
+        out->push_back(c);
       }
       best_score = std::max(best_score, score);
     }
@@ -235,6 +254,70 @@ bool Identifier::PatchPose(int s, const Seed& seed, const Eigen::Vector2i& L0, i
   pose->R = R.transpose();
   pose->t = -(R.transpose() * located->scene_from_source.translation);
   return true;
+}
+
+// A grown seed (GrowSeed): from every P3P pose of the cross that fits the
+// patch (FitPatch), the pose carried out to the far nodes stage by stage
+// (ExtendPatchPose); the one that reaches farthest (most observations) is
+// kept. Every root is tried: on a small patch a pose and its tilted twin
+// fit alike, and only the far nodes tell them apart.
+bool Identifier::GrownPatchPose(int s, const Seed& seed, const Eigen::Vector2i& L0, int g,
+                                const std::array<PoseRt, 4>& poses, int num_poses, PoseRt* pose) const {
+  const PatternIndex& idx = index_[s];
+  std::vector<SpotObservation> obs;
+  for (const auto& [i, o] : seed.patch) {
+    const Eigen::Vector2i l = L0 + Apply(g, o);
+    if (!idx.Has(l.x(), l.y()) || !Eligible(i, s)) continue;
+    SpotObservation so;
+    so.beam_id = idx.Id(l.x(), l.y());
+    so.point_in_scene = pool_.p[i];
+    obs.push_back(so);
+  }
+  if (obs.size() < 6) return false;
+  int best = -1;
+  for (int k = 0; k < num_poses; ++k) {
+    if (!poses[k].R.allFinite() || !poses[k].t.allFinite()) continue;
+    PoseRt fitted;
+    if (!FitPatch(idx, obs, poses[k], &fitted)) continue;
+    const int reached = ExtendPatchPose(s, seed, L0, g, obs, &fitted);
+    if (reached > best) {
+      best = reached;
+      *pose = fitted;
+    }
+  }
+  return best >= 0;
+}
+
+// A grown seed (GrowSeed): the patch pose carried out to the far nodes
+// stage by stage, the Chebyshev radius doubling from 4 (each stage's
+// prediction reaches twice as far as the points it was fitted to, well
+// within FitPatch's guess gate); a stage that fails leaves the pose of the
+// last one that fitted.
+int Identifier::ExtendPatchPose(int s, const Seed& seed, const Eigen::Vector2i& L0, int g,
+                                std::vector<SpotObservation> obs, PoseRt* pose) const {
+  int fitted = static_cast<int>(obs.size());
+  const PatternIndex& idx = index_[s];
+  int reach = 0;
+  for (const auto& f : seed.far) reach = std::max(reach, f.second.cwiseAbs().maxCoeff());
+  for (int lo = 2, hi = 4; lo < reach; lo = hi, hi *= 2) {
+    const size_t before = obs.size();
+    for (const auto& [i, o] : seed.far) {
+      const int r = o.cwiseAbs().maxCoeff();
+      if (r <= lo || r > hi) continue;
+      const Eigen::Vector2i l = L0 + Apply(g, o);
+      if (!idx.Has(l.x(), l.y()) || !Eligible(i, s)) continue;
+      SpotObservation so;
+      so.beam_id = idx.Id(l.x(), l.y());
+      so.point_in_scene = pool_.p[i];
+      obs.push_back(so);
+    }
+    if (obs.size() == before) continue;
+    PoseRt next;
+    if (!FitPatch(idx, obs, *pose, &next)) return fitted;
+    *pose = next;
+    fitted = static_cast<int>(obs.size());
+  }
+  return fitted;
 }
 
 // Least squares of the angle residuals (PoseNormalEquations, unweighted)

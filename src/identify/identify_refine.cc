@@ -18,7 +18,7 @@ namespace identify_internal {
 // `gate`; conflicts (two points in one beam's gate) resolved by the chi^2
 // margin when sigma > 0, else by the nearest.
 Detection Identifier::Assign(int s, const Rigid3d& scene_from_source, double gate, double sigma,
-                              const Eigen::Vector2i& centre, int radius) const {
+                              const Eigen::Vector2i& centre, int radius, const std::vector<int>* subset) const {
   const PatternIndex& idx = index_[s];
   const Eigen::Matrix3d Rt = scene_from_source.RotationMatrix().transpose();
   const Eigen::Vector3d t = scene_from_source.translation;
@@ -26,7 +26,9 @@ Detection Identifier::Assign(int s, const Rigid3d& scene_from_source, double gat
   std::vector<int> best(nn, -1), second(nn, -1);
   std::vector<double> best_a(nn, 0.0), second_a(nn, 0.0);
   const double reach = idx.PositionReach(gate);
-  for (int i = 0; i < pool_.size(); ++i) {
+  const int count = subset != nullptr ? static_cast<int>(subset->size()) : pool_.size();
+  for (int k = 0; k < count; ++k) {
+    const int i = subset != nullptr ? (*subset)[k] : k;
     if (!Eligible(i, s)) continue;
     const Eigen::Vector3d q = Rt * (pool_.p[i] - t);
     if (!(q.x() > 0.0) || !idx.MayBeWithin(q, gate)) continue;
@@ -77,7 +79,21 @@ bool Identifier::Refine(const Candidate& c, Detection* out) const {
   static constexpr int kRadii[] = {2, 3, 5, 8};
   int stage = c.grow ? 0 : 4;
   auto radius = [&stage]() { return stage < 4 ? kRadii[stage] : 1 << 20; };
-  Detection d = Assign(c.source, pose, gate, sigma, c.node, radius());
+  // Large sets: the growth stages (nodes within 8 of the seed's) look only
+  // at the points within 1.5 (8 + 2) cross steps of the seed's point, a
+  // generous superset on any smooth surface (the steps would have to grow
+  // by half within 10 nodes to leave one out).
+  std::vector<int> near;
+  const std::vector<int>* subset = nullptr;
+  if (local_growth_ && c.grow && c.seed_point >= 0 && c.seed_step > 0.0) {
+    const Eigen::Vector3d centre = pool_.p[c.seed_point];
+    const double reach = 1.5 * (kRadii[3] + 2) * c.seed_step;
+    for (int i = 0; i < pool_.size(); ++i) {
+      if ((pool_.p[i] - centre).squaredNorm() <= reach * reach) near.push_back(i);
+    }
+    subset = &near;
+  }
+  Detection d = Assign(c.source, pose, gate, sigma, c.node, radius(), subset);
   LocateOptions lo;
   lo.ransac_seed = options_.seed;
   // The assigned points are within `cap` of their beams under the initial
@@ -115,7 +131,7 @@ bool Identifier::Refine(const Candidate& c, Detection* out) const {
     if (stage < 4) {
       ++stage;
       gate = cap;
-      d = Assign(c.source, pose, gate, 0.0, c.node, radius());
+      d = Assign(c.source, pose, gate, 0.0, c.node, radius(), stage < 4 ? subset : nullptr);
       continue;
     }
     schedule *= 0.5;

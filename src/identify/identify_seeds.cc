@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "identify/identify_spots_internal.h"
+#include "identify/nearest_neighbours.h"
 
 namespace opl {
 namespace identify_internal {
@@ -24,23 +25,8 @@ std::vector<Seed> FindSeeds(const Pool& pool, int k, int threads) {
   if (n < 5) return seeds;
   k = std::min(k, n - 1);
 
-  // The k nearest neighbours of every point, by a sweep along the axis of
-  // the largest extent: the points sorted along it, each point's search
-  // runs outwards in that order and stops on a side once the coordinate gap
-  // alone exceeds the k-th smallest squared distance found.
-  int sweep_axis = 0;
-  {
-    Eigen::Vector3d lo = pool.p[0], hi = pool.p[0];
-    for (const Eigen::Vector3d& p : pool.p) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
-    (hi - lo).maxCoeff(&sweep_axis);
-  }
-  std::vector<int> order(n), rank(n);
-  for (int i = 0; i < n; ++i) order[i] = i;
-  std::sort(order.begin(), order.end(), [&](int a, int b) {
-    const double xa = pool.p[a][sweep_axis], xb = pool.p[b][sweep_axis];
-    return xa < xb || (xa == xb && a < b);
-  });
-  for (int r = 0; r < n; ++r) rank[order[r]] = r;
+  // The k nearest neighbours of every point (exact: nearest_neighbours.h).
+  const NearestNeighbours neighbours(pool.p, k);
   struct Axis {
     int plus, minus;
     Eigen::Vector3d a;      // half the step from minus to plus
@@ -57,45 +43,7 @@ std::vector<Seed> FindSeeds(const Pool& pool, int k, int threads) {
   // insertion-sorted array: k is small).
   std::vector<std::pair<double, int>> knn(k);
   for (int i = i_begin; i < i_end; ++i) {
-    // The keys are unique, so the result is exactly the k first of all pairs
-    // sorted.
-    int size = 0;
-    const Eigen::Vector3d pi0 = pool.p[i];
-    const double xi = pi0[sweep_axis];
-    auto visit = [&](int j) {
-      const std::pair<double, int> key((pool.p[j] - pi0).squaredNorm(), j);
-      if (size == k && !(key < knn[k - 1])) return;
-      int pos = size < k ? size++ : k - 1;
-      while (pos > 0 && key < knn[pos - 1]) {
-        knn[pos] = knn[pos - 1];
-        --pos;
-      }
-      knn[pos] = key;
-    };
-    // A side is done when its next point's gap squared exceeds the k-th
-    // smallest so far (every later point on it is at least as far).
-    auto done = [&](int j) {
-      if (size < k) return false;
-      const double gap = pool.p[j][sweep_axis] - xi;
-      return gap * gap > knn[k - 1].first;
-    };
-    int down = rank[i] - 1, up = rank[i] + 1;
-    while (down >= 0 || up < n) {
-      if (down >= 0) {
-        if (done(order[down])) {
-          down = -1;
-        } else {
-          visit(order[down--]);
-        }
-      }
-      if (up < n) {
-        if (done(order[up])) {
-          up = n;
-        } else {
-          visit(order[up++]);
-        }
-      }
-    }
+    neighbours.Find(i, &knn);
     for (int j = 0; j < k; ++j) nb[j] = knn[j].second;
     for (int j = 0; j < k; ++j) nbp[j] = pool.p[nb[j]];
     for (int j = 0; j < k; ++j) nbd[j] = std::sqrt(knn[j].first);

@@ -158,6 +158,16 @@ Result<IdentifyResult> IdentifySpots(const ModuleCalibration& calibration, const
   }
 
   const std::vector<Seed> seeds = FindSeeds(pool, options.neighbours, options.num_threads);
+  // Large sets: seeds grown over their grids before they are tried (step 1b).
+  std::optional<identify_internal::PointHash> hash;
+  int max_extent = 0;
+  if (pool.size() > identify_internal::kGrowPoolSize) {
+    hash.emplace(pool.p, 0.5 * identify_internal::TypicalStep(seeds, pool));
+    identifier.set_local_growth(true);
+    for (const SourceCalibration& s : calibration.sources) {
+      max_extent = std::max(max_extent, s.pattern.beams_per_side() - 1);
+    }
+  }
   int tried = 0, tried_derived = 0;
   auto usable = [&](const Seed& seed) {
     bool skip = pool.taken[seed.p0] || pool.taken[seed.pa] || pool.taken[seed.pb];
@@ -381,7 +391,13 @@ Result<IdentifyResult> IdentifySpots(const ModuleCalibration& calibration, const
         if (!usable(seed)) continue;
         ++*counter;
         const int derived_before = tried_derived;
-        try_seed(seed, true, deferrals < kDeferrals);
+        if (hash) {
+          Seed grown = seed;
+          identify_internal::GrowSeed(pool, *hash, max_extent, &grown);
+          try_seed(grown, true, deferrals < kDeferrals);
+        } else {
+          try_seed(seed, true, deferrals < kDeferrals);
+        }
         deferrals += deferred_one;
         progress.seeds_tried += 1 + (tried_derived - derived_before);
         report_progress();

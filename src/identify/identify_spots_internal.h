@@ -3,6 +3,7 @@
 //
 //   pattern_index.h/.cc     a pattern's lattice model and nearest-beam lookup
 //   identify_seeds.cc       step 1: seeds (lattice crosses among the points)
+//   identify_growth.cc      step 1b (large sets): a seed's patch grown over its grid
 //   identify_hypotheses.cc  step 2: hypotheses of a seed, their poses, scores
 //   identify_refine.cc      step 3: a candidate grown and refined; assignment
 //   identify_rivals.cc      steps 4-5: alternatives of a detection, its cost
@@ -17,7 +18,9 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
 #include <functional>
+#include <unordered_map>
 #include <utility>
 #include <vector>
 
@@ -51,7 +54,46 @@ struct Seed {
   // along (a, b): p0, p0 +- a, p0 +- b and the supported p0 +- a +- b,
   // p0 +- 2a, p0 +- 2b.
   std::vector<std::pair<int, Eigen::Vector2i>> patch;
+  // Large sets only (GrowSeed): the patch grown over the grid, every node
+  // (point, offset), the patch's first; and the far nodes (beyond the
+  // patch's +-2) that carry the patch pose out (Identifier::ExtendPatchPose):
+  // rings of radius (2, 4], (4, 8], ..., of each an even sub-lattice of at
+  // most about 24 nodes.
+  std::vector<std::pair<int, Eigen::Vector2i>> grown{};
+  std::vector<std::pair<int, Eigen::Vector2i>> far{};
 };
+
+// Point sets above this size are identified with grown seeds (GrowSeed);
+// smaller ones exactly as before growth existed.
+inline constexpr int kGrowPoolSize = 4096;
+
+// The points of a set by cells of a uniform 3D grid, for radius queries.
+class PointHash {
+ public:
+  // `cell`: the cell size (scene units), enlarged when the set would span
+  // more than 2^20 cells a side.
+  PointHash(const std::vector<Eigen::Vector3d>& points, double cell);
+  // Indices of the points within `radius` of `centre`, ascending; empty
+  // when the query would scan more than 4096 cells (not a local query).
+  void Within(const Eigen::Vector3d& centre, double radius, std::vector<int>* out) const;
+
+ private:
+  const std::vector<Eigen::Vector3d>& points_;
+  Eigen::Vector3d lo_ = Eigen::Vector3d::Zero();
+  double cell_ = 1.0;
+  std::vector<int> order_;                                  // point indices by cell
+  std::unordered_map<uint64_t, std::pair<int, int>> range_;  // cell -> [begin, end) of order_
+};
+
+// The median step length of the best seeds (at most 32 of them): the
+// typical lattice pitch of the set, scene units; 0 without seeds.
+double TypicalStep(const std::vector<Seed>& seeds, const Pool& pool);
+
+// Grows the seed's patch over its lattice (identify_growth.cc): nodes
+// predicted from their grown neighbours take the one free point near the
+// prediction; fills seed->far and seed->grown_nodes. Offsets stay within
+// [-max_extent, max_extent].
+void GrowSeed(const Pool& pool, const PointHash& hash, int max_extent, Seed* seed);
 
 // The seeds of the pool (identify_spots.h, step 1), best first: points with
 // two pairs of opposite neighbours among their k nearest, worked in `threads`
@@ -86,6 +128,11 @@ struct Candidate {
   // `grow` (a pose from three neighbouring spots is right only near them).
   Eigen::Vector2i node = Eigen::Vector2i::Zero();
   bool grow = false;
+  // The seed's point (at `node`) and its longer cross step, scene units:
+  // for large sets the growth stages look only at the points near it
+  // (Identifier::Refine). -1: at all points.
+  int seed_point = -1;
+  double seed_step = 0.0;
 };
 
 // True when a and b give (mostly) the same correspondence.
@@ -103,6 +150,10 @@ class Identifier {
   }
 
   const PatternIndex& index(int s) const { return index_[s]; }
+
+  // Large sets (step 1b): Refine's growth stages look only at the points
+  // near the seed's (Candidate::seed_point). Off (the default): at every point.
+  void set_local_growth(bool local) { local_growth_ = local; }
 
   bool Eligible(int i, int s) const {
     return !pool_.taken[i] && (pool_.only_source[i] < 0 || pool_.only_source[i] == s);
@@ -132,6 +183,14 @@ class Identifier {
   // The pose of source s that maps the seed's patch onto the beams L0 + g offset.
   bool PatchPose(int s, const Seed& seed, const Eigen::Vector2i& L0, int g, const PoseRt* guess,
                  PoseRt* pose) const;
+  // A grown seed's pose at (L0, g): of the P3P poses of its cross, the one
+  // that carries farthest over the grown patch (step 1b); false when none fits.
+  bool GrownPatchPose(int s, const Seed& seed, const Eigen::Vector2i& L0, int g,
+                      const std::array<PoseRt, 4>& poses, int num_poses, PoseRt* pose) const;
+  // `pose`, fitted to the observations `obs` of the seed's patch, carried out
+  // to its far nodes ring by ring; the observations of the last fit that held.
+  int ExtendPatchPose(int s, const Seed& seed, const Eigen::Vector2i& L0, int g,
+                      std::vector<SpotObservation> obs, PoseRt* pose) const;
   // Least squares of the patch's observations that fit `guess`.
   bool FitPatch(const PatternIndex& idx, const std::vector<SpotObservation>& obs, const PoseRt& guess,
                 PoseRt* pose) const;
@@ -141,8 +200,10 @@ class Identifier {
   // Step 3 (identify_refine.cc).
   // Points assigned to beams of source s under scene_from_source within
   // `gate` (and within `radius` nodes of `centre`).
+  // `subset`: only these pool indices are considered (nullptr: all).
   Detection Assign(int s, const Rigid3d& scene_from_source, double gate, double sigma,
-                   const Eigen::Vector2i& centre = Eigen::Vector2i::Zero(), int radius = 1 << 20) const;
+                   const Eigen::Vector2i& centre = Eigen::Vector2i::Zero(), int radius = 1 << 20,
+                   const std::vector<int>* subset = nullptr) const;
   // A candidate grown onto its grid and refined; false when rejected.
   bool Refine(const Candidate& c, Detection* out) const;
   // Angle from point p (scene) to its nearest beam of source s; infinity when none.
@@ -184,6 +245,7 @@ class Identifier {
   const std::vector<std::vector<char>>& reserved_;
   std::vector<PatternIndex> index_;
   mutable PoseNormalEquations patch_problem_;  // FitPatch's scratch (one thread)
+  bool local_growth_ = false;
 };
 
 }  // namespace identify_internal

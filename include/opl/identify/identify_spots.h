@@ -37,6 +37,19 @@
 //     found and others remain, seeds are computed again from the points
 //     still free (the other grid's own crosses used the found grid's
 //     points; budget: max_seeds more).
+//  1b. Large sets (above 4096 points). Before a seed is tried its patch is
+//     grown over its grid: breadth-first, a node next to grown ones is
+//     predicted from them (linearly, and by parallelograms across) and takes
+//     the one free point within a quarter step of the prediction (none when
+//     two are there). The grown offsets are the histogram of step 2 (no
+//     pose needed), and a hypothesis' patch pose is carried out ring by
+//     ring (radius 4, 8, 16, ...) over an even subset of the grown nodes,
+//     from each P3P pose of the cross (a small patch does not tell a pose
+//     from its tilted twin), so that it holds over the whole grid; the
+//     growth stages of step 3 look only at points near the seed. Without it
+//     a 71 x 71 grid took dozens of failed seeds (a patch pose holds only a
+//     few nodes away). The k nearest neighbours of step 1 come from a grid
+//     of cells instead of a sweep (the same neighbours, exactly).
 //  2. Hypotheses. The patch is taken as lattice nodes L + g o (o its offsets,
 //     g one of the 8 symmetries of the square). The patch's pose at the
 //     central node gives a pose; every point is mapped through it to

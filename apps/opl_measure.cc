@@ -297,7 +297,9 @@ int Run(int argc, char** argv) {
                  "With --images: write, for every image, DIR/<image>_overlay.jpg: the image\n"
                  "dimmed, with the tags found (cyan, with ids), the spots identified (green,\n"
                  "with source and beam), matched (yellow), unmatched (orange) and the blobs\n"
-                 "rejected as not laser spots (red x) (docs/images.md, 'Overlays')")
+                 "rejected as not laser spots (red x); refused before any work when DIR cannot\n"
+                 "be written or an overlay would replace an input or another output\n"
+                 "(docs/images.md, 'Overlays')")
       ->needs(images);
   app.add_option("--threads", args.threads, "With --images: detection threads, >= 0; 0 = every core")
       ->capture_default_str();

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "cli_common.h"
+#include "overlays_output.h"
 #include "progress_bar.h"
 #include "spots_input.h"
 #include "opl/calibrate/calibrate_module.h"
@@ -18,6 +19,7 @@
 #include "opl/io/module_design_json.h"
 #include "opl/io/scene_json.h"
 #include "opl/pipeline/calibrate_images.h"
+#include "opl/pipeline/calibrate_overlays.h"
 #include "opl/pipeline/measure_images.h"
 #include "opl/sim/module_design.h"
 #include "opl/core/format.h"
@@ -56,6 +58,7 @@ struct Args {
   double artifact_u_mm = 0.0;
   std::string images_dir;
   std::string scene_path;
+  std::string overlays_dir;
   int threads = 0;
   bool one_pose_per_camera = false;
   opl::cli::ImageRunArgs image_run;  // --spot-channel, --force, --verbose
@@ -107,21 +110,43 @@ std::optional<int> ArtifactScaling(const Args& args,
   return std::nullopt;
 }
 
-// Writes the calibration JSON (and the --report folder), everything made
-// before the first write; prints `text_before` and the summary.
+// The --report files inside its folder, for the checks that no output names
+// an input or another output.
+std::vector<opl::cli::NamedPath> ReportFiles(const Args& args) {
+  if (args.report_dir.empty()) return {};
+  const std::filesystem::path dir(args.report_dir);
+  return {{"--report (beams.csv)", (dir / "beams.csv").string()},
+          {"--report (samples.csv)", (dir / "samples.csv").string()}};
+}
+
+// With --images: the photographs of the session and, with --overlays, their
+// overlays (name, JPEG) to write into that folder.
+struct ImageOutputs {
+  const opl::Scene* scene = nullptr;
+  std::vector<std::pair<std::string, std::string>> overlays;
+};
+
+// Writes the calibration JSON (and the --report folder, the --overlays),
+// everything made before the first write; prints `text_before` and the
+// summary.
 int WriteOutputs(const Args& args, const opl::ModuleCalibrationResult& result,
-                 const std::string& text_before, const opl::Scene* scene = nullptr) {
+                 const std::string& text_before, const ImageOutputs& from_images = ImageOutputs()) {
   using namespace opl;
   std::vector<std::string> inputs = {args.spots.path, args.targets_path, args.design_path,
                                      args.scene_path};
-  if (scene != nullptr) {
-    for (std::string& image : cli::ExistingShotImages(*scene, args.images_dir)) inputs.push_back(std::move(image));
+  if (from_images.scene != nullptr) {
+    for (std::string& image : cli::ExistingShotImages(*from_images.scene, args.images_dir)) {
+      inputs.push_back(std::move(image));
+    }
   }
   Provenance provenance;
   if (std::optional<int> code =
           cli::MakeRunProvenance(kTool, args.argc, args.argv, inputs, &provenance)) {
     return *code;
   }
+  // Folders this run creates (the overlays', the report's) are removed again
+  // when it writes nothing (after the set's temporary files: declared first).
+  cli::NewFolders new_folders;
   OutputSet outputs(provenance);
   Result<std::string> json = FormatModuleCalibrationJson(result.calibration);
   if (!json.ok()) return cli::Fail(kTool, json.status().message(), cli::kExitNoSolution);
@@ -131,6 +156,10 @@ int WriteOutputs(const Args& args, const opl::ModuleCalibrationResult& result,
   // by colour: --heatmap-max-mm, or the largest value of them all. --out is
   // staged first, so that a bad --out fails before the report folder exists.
   if (Status st = outputs.Add(args.out_path, *json); !st.ok()) return cli::FailWrite(kTool, st);
+  if (Status st = cli::StageOverlays(args.overlays_dir, from_images.overlays, &new_folders, &outputs);
+      !st.ok()) {
+    return cli::FailWrite(kTool, st);
+  }
   if (!args.report_dir.empty()) {
     std::vector<GridHeatmap> heatmaps;
     std::string names;
@@ -166,24 +195,8 @@ int WriteOutputs(const Args& args, const opl::ModuleCalibrationResult& result,
                               PlotFormatName(*format),
                           std::move(*bytes));
     }
-    std::error_code ec;
-    const bool dir_existed = std::filesystem::exists(args.report_dir, ec);
-    std::filesystem::create_directories(args.report_dir, ec);
-    if (ec) {
-      return cli::Fail(kTool, args.report_dir + ": cannot create the report folder: " + ec.message(),
-                       cli::kExitWriteFailed);
-    }
+    if (Status st = new_folders.Create(args.report_dir); !st.ok()) return cli::FailWrite(kTool, st);
     const std::filesystem::path dir(args.report_dir);
-    // A folder this run created is removed again when the run writes nothing
-    // (std::filesystem::remove leaves a folder that is not empty).
-    struct RemoveIfCreated {
-      std::filesystem::path dir;
-      bool keep;
-      ~RemoveIfCreated() {
-        std::error_code ignored;
-        if (!keep) std::filesystem::remove(dir, ignored);
-      }
-    } cleanup{dir, dir_existed};
     for (const auto& [name, text] :
          {std::pair<std::string, std::string>{"beams.csv", BeamQualityCsv(result)},
           {"samples.csv", SampleResidualsCsv(result)}}) {
@@ -198,13 +211,10 @@ int WriteOutputs(const Args& args, const opl::ModuleCalibrationResult& result,
                                                     : outputs.Add((dir / name).string(), text);
       if (!st.ok()) return cli::FailWrite(kTool, st);
     }
-    // All of them or none (io/output_set.h).
-    if (Status st = outputs.Commit(); !st.ok()) return cli::FailWrite(kTool, st);
-    cleanup.keep = true;
-    return cli::PrintToStdout(kTool, text_before + CalibrationSummaryText(result));
   }
   // All of them or none (io/output_set.h).
   if (Status st = outputs.Commit(); !st.ok()) return cli::FailWrite(kTool, st);
+  new_folders.Keep();
   return cli::PrintToStdout(kTool, text_before + CalibrationSummaryText(result));
 }
 
@@ -227,6 +237,13 @@ int RunImages(const Args& args) {
   if (Status st = CheckSceneHasLasers(*scene); !st.ok()) {
     return cli::Fail(kTool, args.scene_path + ": " + st.message(), cli::kExitBadInput);
   }
+  std::vector<cli::NamedPath> outputs = ReportFiles(args);
+  outputs.push_back({"--out", args.out_path});
+  if (std::optional<int> code = cli::CheckOverlaysOutput(
+          kTool, args.overlays_dir, *scene, args.images_dir,
+          {{"--scene", args.scene_path}, {"--design", args.design_path}}, outputs)) {
+    return *code;
+  }
   Result<ModuleDesign> design = ReadModuleDesignJson(args.design_path);
   if (!design.ok()) return cli::FailInput(kTool, design.status());
   Result<ModuleCalibration> nominal = ExactCalibration(*design);
@@ -247,7 +264,15 @@ int RunImages(const Args& args) {
   bar.Finish();
   if (!report.ok()) return cli::FailInput(kTool, report.status());
   if (args.image_run.verbose) std::cerr << report->front_end.bundle_report;
-  return WriteOutputs(args, report->calibration, report->ToText(), &*scene);
+  ImageOutputs image_outputs;
+  image_outputs.scene = &*scene;
+  if (!args.overlays_dir.empty()) {
+    Result<std::vector<std::pair<std::string, std::string>>> drawn =
+        RenderOverlays(*scene, args.images_dir, *report, args.threads);
+    if (!drawn.ok()) return cli::FailInput(kTool, drawn.status());
+    image_outputs.overlays = std::move(*drawn);
+  }
+  return WriteOutputs(args, report->calibration, report->ToText(), image_outputs);
 }
 
 int Run(int argc, char** argv) {
@@ -301,6 +326,15 @@ int Run(int argc, char** argv) {
                "With --images: the shots of one camera share one pose (cameras on tripods,\n"
                "untouched for the whole session); refused when a camera's shots place it\n"
                "more than 5 mm or 2 mrad apart (docs/images.md)")
+      ->needs(images);
+  app.add_option("--overlays", args.overlays_dir,
+                 "With --images: write, for every image, DIR/<image>_overlay.jpg: the image\n"
+                 "dimmed, with the tags found (cyan, with ids), the spots identified (green,\n"
+                 "with source and beam, as the calibration used them), matched (yellow),\n"
+                 "unmatched (orange) and the blobs rejected as not laser spots (red x); refused\n"
+                 "before any work when DIR cannot be written or an overlay would replace an\n"
+                 "input or another output (docs/images.md, 'Overlays')")
+      ->type_name("DIR")
       ->needs(images);
   images->needs(scene);
   scene->needs(images);
@@ -381,25 +415,21 @@ int Run(int argc, char** argv) {
       "  opl_calibrate --spots session.csv --targets targets.csv --artifact T1,T2 \\\n"
       "      --artifact-length-mm 1677.66 --artifact-u-mm 0.005 --out module.json\n"
       "  opl_calibrate --images session/ --scene session.json --design design.json \\\n"
-      "      --out module.json\n"));
+      "      --out module.json --overlays session_overlays/\n"));
   if (std::optional<int> code = cli::ParseCommandLine(app, argc, argv)) return *code;
   args.argc = argc;
   args.argv = argv;
   {
     // --report writes beams.csv and samples.csv (and PNGs) into its folder.
-    const auto in_report = [&args](const char* name) {
-      return args.report_dir.empty() ? std::string()
-                                     : (std::filesystem::path(args.report_dir) / name).string();
-    };
+    std::vector<cli::NamedPath> outputs = {{"--out", args.out_path}};
+    for (cli::NamedPath& file : ReportFiles(args)) outputs.push_back(std::move(file));
     if (std::optional<int> code = cli::RefuseOutputsOverInputs(
             kTool,
             {{"--spots", args.spots.path},
              {"--design", args.design_path},
              {"--targets", args.targets_path},
              {"--scene", args.scene_path}},
-            {{"--out", args.out_path},
-             {"--report (beams.csv)", in_report("beams.csv")},
-             {"--report (samples.csv)", in_report("samples.csv")}})) {
+            outputs)) {
       return *code;
     }
   }

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "cli_common.h"
+#include "overlays_output.h"
 #include "progress_bar.h"
 #include "spots_input.h"
 #include "opl/core/format.h"
@@ -133,6 +134,14 @@ int RunImages(const Args& args, int argc, char** argv) {
     return cli::Fail(kTool, args.scene_path + ": " + st.message(), cli::kExitBadInput);
   }
   if (std::optional<int> code = CheckApply(args)) return *code;
+  if (std::optional<int> code = cli::CheckOverlaysOutput(
+          kTool, args.overlays_dir, *scene, args.images_dir,
+          {{"--calibration", args.calibration_path},
+           {"--scene", args.scene_path},
+           {"--apply", args.apply_path}},
+          {{"--out", args.out_path}, {"--spots-out", args.spots_out_path}})) {
+    return *code;
+  }
   std::optional<ColmapModel> colmap;
   if (!args.colmap_dir.empty()) {
     Result<ColmapModel> model = ReadColmapModel(args.colmap_dir);
@@ -184,14 +193,12 @@ int RunImages(const Args& args, int argc, char** argv) {
   // Every output or none: all are staged (stamped with the provenance), then
   // committed together. The COLMAP folder is written first (one rename) and
   // removed if the rest fails.
+  // The folders made for the outputs are removed again unless every output
+  // is written (after the set's temporary files: declared first).
+  cli::NewFolders new_folders;
   OutputSet outputs(provenance);
-  if (!args.overlays_dir.empty()) {
-    std::error_code ec;
-    for (const auto& [name, bytes] : overlays) {
-      const std::filesystem::path path = std::filesystem::path(args.overlays_dir) / name;
-      std::filesystem::create_directories(path.parent_path(), ec);
-      if (Status st = outputs.Add(path.string(), bytes); !st.ok()) return cli::FailWrite(kTool, st);
-    }
+  if (Status st = cli::StageOverlays(args.overlays_dir, overlays, &new_folders, &outputs); !st.ok()) {
+    return cli::FailWrite(kTool, st);
   }
   if (!args.apply_path.empty()) {
     if (std::optional<int> code =
@@ -225,6 +232,7 @@ int RunImages(const Args& args, int argc, char** argv) {
     if (colmap && !args.colmap_out_dir.empty()) std::filesystem::remove_all(args.colmap_out_dir, ec);
     return cli::FailWrite(kTool, st);
   }
+  new_folders.Keep();
   return args.json ? cli::PrintJsonToStdout(kTool, report->ToJson(), provenance)
                    : cli::PrintToStdout(kTool, report->ToText());
 }
@@ -289,7 +297,9 @@ int Run(int argc, char** argv) {
                  "With --images: write, for every image, DIR/<image>_overlay.jpg: the image\n"
                  "dimmed, with the tags found (cyan, with ids), the spots identified (green,\n"
                  "with source and beam), matched (yellow), unmatched (orange) and the blobs\n"
-                 "rejected as not laser spots (red x) (docs/images.md, 'Overlays')")
+                 "rejected as not laser spots (red x); refused before any work when DIR cannot\n"
+                 "be written or an overlay would replace an input or another output\n"
+                 "(docs/images.md, 'Overlays')")
       ->needs(images);
   app.add_option("--threads", args.threads, "With --images: detection threads, >= 0; 0 = every core")
       ->capture_default_str();

@@ -109,7 +109,9 @@ Result<ImageCalibrationReport> CalibrateFromImages(const Scene& scene,
   std::vector<Eigen::MatrixXd> factors;
   bool split = options.propagate_shared_errors;
   for (const Spot& s : assigned) {
-    const FrontEndSpot& f = report.front_end.spots.at(front_end_index.at(s.where));
+    const size_t k = front_end_index.at(s.where);
+    report.identified_front_end_spots.push_back(static_cast<int>(k));
+    const FrontEndSpot& f = report.front_end.spots.at(k);
     split &= f.shared_factor.size() > 0 &&
              (factors.empty() || f.shared_factor.cols() == factors.front().cols());
     source_spots.push_back(&f);

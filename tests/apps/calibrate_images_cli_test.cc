@@ -3,18 +3,25 @@
 // images with light speckle and sensor noise), opl_calibrate --images
 // calibrates the module from them against its nominal design (exit 0, a
 // module calibration JSON whose separation is the design's 55 mm within its
-// uncertainty, the per-image report, the heat maps); and the usage errors of
-// --images.
+// uncertainty, the per-image report, the heat maps, the overlays, all of them
+// or none); and the usage errors of --images and --overlays.
+#include <cmath>
+#include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <set>
 #include <string>
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
 
 #include "apps/cli_test_util.h"
 #include "opl/io/module_calibration_json.h"
+#include "opl/io/scene_json.h"
+#include "opl/lab/render_scene.h"
 
 namespace opl {
 namespace {
@@ -36,8 +43,22 @@ TEST(CalibrateImagesCli, SimulateThenCalibrate) {
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const std::string out = dir.File("cal.json");
   const std::string report = dir.File("rep");
+  const std::string overlays = dir.File("overlays");
+  // An output that fails after the work (the report folder's name is taken
+  // by a file): exit 5, and neither the calibration nor the overlays (staged
+  // before the report) nor their folder stays.
+  const std::string taken = dir.File("taken");
+  std::ofstream(taken) << "a file\n";
+  r = Calibrate("--images " + shots + " --scene " + kScene + " --design " + kDesign + " --out " +
+                out + " --overlays " + overlays + " --report " + taken + " --threads 2");
+  EXPECT_EQ(r.exit_code, 5) << r.err;
+  EXPECT_THAT(r.err, HasSubstr("taken"));
+  EXPECT_FALSE(std::filesystem::exists(out));
+  EXPECT_FALSE(std::filesystem::exists(overlays));
+
   r = Calibrate("--images " + shots + " --scene " + kScene + " --design " + kDesign +
-                " --out " + out + " --report " + report + " --threads 2");
+                " --out " + out + " --report " + report + " --overlays " + overlays +
+                " --threads 2");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   // The per-image report names every image, then the artifact's scale.
   for (const char* file : {"s0_A_cam0.png", "s1_B_cam1.png", "s2_A_cam2.png"}) {
@@ -73,6 +94,117 @@ TEST(CalibrateImagesCli, SimulateThenCalibrate) {
   EXPECT_EQ(files,
             (std::set<std::string>{"beams.csv", "heatmap_A.png", "heatmap_B.png", "samples.csv"}));
   EXPECT_EQ(ReadAll(report + "/heatmap_B.png").substr(0, 8), "\x89PNG\r\n\x1a\n");
+
+  // One overlay per image, a JPEG of the image's size.
+  Result<Scene> scene = ReadSceneJson(kScene);
+  ASSERT_TRUE(scene.ok()) << scene.status().ToString();
+  files.clear();
+  for (const auto& e : std::filesystem::directory_iterator(overlays)) {
+    files.insert(e.path().filename().string());
+  }
+  EXPECT_EQ(files.size(), scene->shots.size());
+  for (const SceneShot& shot : scene->shots) {
+    const std::string name = shot.file.substr(0, shot.file.rfind('.')) + "_overlay.jpg";
+    EXPECT_EQ(files.count(name), 1u) << name;
+    const cv::Mat overlay = cv::imread(overlays + "/" + name, cv::IMREAD_COLOR);
+    ASSERT_FALSE(overlay.empty()) << name;
+    EXPECT_EQ(overlay.cols, 1024) << name;
+    EXPECT_EQ(overlay.rows, 768) << name;
+  }
+  // Every spot of a slice's grid is identified and ringed in green where the
+  // truth puts it, in an image of each source on different slices: the ring
+  // (radius 6 px, 1 px wide, softened by the JPEG) gives 10 or more green
+  // pixels (green above 110 and 60 above red and blue: the dimmed image is
+  // grey) within 8 px of the true centre, and none within 1 px of it (a
+  // ring, not a disc or one moved by its radius). Nothing drawn, or drawn a
+  // few pixels off, fails; the grid steps are 19 to 28 px.
+  Result<SceneRenderer> truth = SceneRenderer::Create(*scene);
+  ASSERT_TRUE(truth.ok()) << truth.status().ToString();
+  for (const std::string file : {"s0_A_cam0.png", "s1_B_cam1.png"}) {
+    int index = -1;
+    for (size_t i = 0; i < scene->shots.size(); ++i) {
+      if (scene->shots[i].file == file) index = static_cast<int>(i);
+    }
+    ASSERT_GE(index, 0) << file;
+    Result<RenderedShot> shot = truth->RenderShot(index);
+    ASSERT_TRUE(shot.ok()) << shot.status().ToString();
+    const cv::Mat overlay =
+        cv::imread(overlays + "/" + file.substr(0, file.rfind('.')) + "_overlay.jpg", cv::IMREAD_COLOR);
+    ASSERT_FALSE(overlay.empty()) << file;
+    cv::Mat bgr[3], red_or_blue;
+    cv::split(overlay, bgr);
+    cv::max(bgr[0], bgr[2], red_or_blue);
+    const cv::Mat green = (bgr[1] >= 110) & (bgr[1] - red_or_blue >= 60);
+    int visible = 0, ringed = 0;
+    for (const SpotView& v : shot->spots) {
+      if (!v.visible) continue;
+      ++visible;
+      const int col = static_cast<int>(std::lround(v.center_px.x()));
+      const int row = static_cast<int>(std::lround(v.center_px.y()));
+      const cv::Rect image_rect(0, 0, green.cols, green.rows);
+      const cv::Rect near = cv::Rect(col - 8, row - 8, 17, 17) & image_rect;
+      const cv::Rect centre = cv::Rect(col - 1, row - 1, 3, 3) & image_rect;
+      if (cv::countNonZero(green(near)) >= 10 && cv::countNonZero(green(centre)) == 0) ++ringed;
+    }
+    std::printf("%s: %d of %d true spots ringed in green\n", file.c_str(), ringed, visible);
+    EXPECT_EQ(visible, 121) << file;
+    EXPECT_GE(ringed, visible - 2) << file;
+  }
+}
+
+// --overlays is refused before any work (exit 2, nothing written) when its
+// folder cannot be written or an overlay would replace an input or another
+// output; the images are not even read (there are none here).
+TEST(CalibrateImagesCli, OverlaysRefusedBeforeAnyWork) {
+  testing_support::TempDir dir;
+  const std::string shots = dir.File("shots");
+  const std::string out = dir.File("cal.json");
+  const std::string file = dir.File("file");
+  std::ofstream(file) << "a file\n";
+  const auto calibrate = [&](const std::string& scene, const std::string& overlays,
+                             const std::string& extra = "") {
+    return Calibrate("--images " + shots + " --scene " + scene + " --design " + kDesign +
+                     " --out " + out + " --overlays " + overlays + extra);
+  };
+  RunResult r = calibrate(kScene, file);
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_THAT(r.err, HasSubstr("--overlays '" + file + "': not a folder"));
+  r = calibrate(kScene, file + "/overlays");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_THAT(r.err, HasSubstr("cannot be created ('" + file + "' is not a writable folder)"));
+  // An overlay over another output.
+  r = Calibrate("--images " + shots + " --scene " + kScene + " --design " + kDesign + " --out " +
+                dir.File("s0_A_cam0_overlay.jpg") + " --overlays " + dir.path());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_THAT(r.err, HasSubstr("the overlay of shot 's0_A_cam0.png') is the same file as --out"));
+
+  // A scene whose shot files collide with the overlays: one shot's image is
+  // named as another's overlay; two shots have the same stem.
+  nlohmann::json json = nlohmann::json::parse(ReadAll(kScene));
+  json["module"] = kDesign;
+  nlohmann::json over_input = json;
+  over_input["shots"][1]["file"] = "s0_A_cam0_overlay.jpg";
+  const std::string scene_over_input = dir.File("over_input.json");
+  std::ofstream(scene_over_input) << over_input.dump();
+  r = calibrate(scene_over_input, shots);
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_THAT(r.err, HasSubstr("is the same file as the image of shot 's0_A_cam0_overlay.jpg': "
+                               "refusing to overwrite an input"));
+  nlohmann::json same_stem = json;
+  same_stem["shots"][1]["file"] = "s0_A_cam0.jpg";
+  const std::string scene_same_stem = dir.File("same_stem.json");
+  std::ofstream(scene_same_stem) << same_stem.dump();
+  r = calibrate(scene_same_stem, dir.File("overlays"));
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_THAT(r.err, HasSubstr("shots 's0_A_cam0.png' and 's0_A_cam0.jpg' would both have the "
+                               "overlay 's0_A_cam0_overlay.jpg'"));
+  // --overlays is for --images.
+  r = Calibrate("--spots s.csv --overlays " + dir.File("overlays") + " --out " + out);
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_THAT(r.err, HasSubstr("--overlays requires --images"));
+  EXPECT_FALSE(std::filesystem::exists(out));
+  EXPECT_FALSE(std::filesystem::exists(dir.File("overlays")));
+  EXPECT_FALSE(std::filesystem::exists(shots));
 }
 
 TEST(CalibrateImagesCli, UsageErrors) {

@@ -40,12 +40,19 @@ TEST(ImagesCli, SimulateThenMeasure) {
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const std::string spots_out = dir.File("spots3d.csv");
   const std::string overlays = dir.File("overlays");
+  // An overlays folder that cannot be written: refused before any work.
+  const std::string file = dir.File("a_file");
+  std::ofstream(file) << "a file\n";
+  r = Measure("--calibration " + calibration + " --images " + shots + " --scene " + kScene +
+              " --overlays " + file);
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_THAT(r.err, HasSubstr("--overlays '" + file + "': not a folder"));
   // An output that cannot be written: exit 5, and none of the others stays
-  // (the overlays were written first).
+  // (the overlays were staged first), nor the overlays' folder.
   r = Measure("--calibration " + calibration + " --images " + shots + " --scene " + kScene +
               " --overlays " + overlays + " --spots-out " + dir.File("missing/spots3d.csv"));
   EXPECT_EQ(r.exit_code, 5) << r.err;
-  EXPECT_TRUE(!std::filesystem::exists(overlays) || std::filesystem::is_empty(overlays));
+  EXPECT_FALSE(std::filesystem::exists(overlays));
   r = Measure("--calibration " + calibration + " --images " + shots + " --scene " + kScene +
               " --spots-out " + spots_out + " --overlays " + overlays + " --json");
   ASSERT_EQ(r.exit_code, 0) << r.err;

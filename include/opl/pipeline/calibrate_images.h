@@ -70,6 +70,9 @@ struct ImageCalibrationReport {
   // The separations' u split into the spots' own errors and the shared ones
   // (components 0 when not propagated).
   SharedErrorSummary shared;
+  // For each of identification.spots, the index of its 3D spot in
+  // front_end.spots (the overlays' labels: pipeline/calibrate_overlays.h).
+  std::vector<int> identified_front_end_spots{};
 
   // The front end's report, the identification's, the scaling, then the
   // separations' own / shared split.

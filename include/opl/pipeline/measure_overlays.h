@@ -1,7 +1,6 @@
-// Overlays of a measurement from photographs: every shot drawn with what the
-// front end and the identification made of it (report/shot_overlay.h has
-// the legend), for a person to check a measurement in seconds
-// (`opl_measure --images ... --overlays DIR`; docs/images.md, "Overlays").
+// Overlays of a measurement from photographs (`opl_measure --images ...
+// --overlays DIR`; docs/images.md, "Overlays"): the shared drawing of
+// pipeline/shot_overlays.h with the measurement's identification.
 #pragma once
 
 #include <string>
@@ -11,24 +10,18 @@
 #include "opl/core/status.h"
 #include "opl/lab/scene.h"
 #include "opl/pipeline/measure_images.h"
-#include "opl/report/shot_overlay.h"
+#include "opl/pipeline/shot_overlays.h"
 
 namespace opl {
 
-// What image `image_index` (a shot of the scene) showed: its tags, its kept
-// spots (identified: "<source><beam>"; matched in a 3D spot; or detected
-// only) and the blobs the spot gates rejected. An index out of range gives
-// an empty overlay.
+// One label per front-end 3D spot: "<source><beam>" for a spot the
+// measurement identified (report.spots[k]), else empty.
+std::vector<std::string> SpotLabels(const ImageMeasureReport& report);
+
+// OverlayOfImage (pipeline/shot_overlays.h) with SpotLabels(report).
 ShotOverlay OverlayOfImage(const ImageMeasureReport& report, int image_index);
 
-// The overlay file's name for a shot file: "<folder>/<stem>_overlay.jpg"
-// ("cam0_A.png" -> "cam0_A_overlay.jpg").
-std::string OverlayFileName(const std::string& shot_file);
-
-// Every shot's overlay, drawn over its image read again from `images_dir`
-// (vision/shot_image.h) and encoded as JPEG (quality 90): (OverlayFileName,
-// bytes) in shot order, made on `threads` threads (0: every core). Errors
-// of ReadShotImage (the file, named).
+// RenderOverlays (pipeline/shot_overlays.h) with SpotLabels(report).
 Result<std::vector<std::pair<std::string, std::string>>> RenderOverlays(
     const Scene& scene, const std::string& images_dir, const ImageMeasureReport& report,
     int threads = 0);

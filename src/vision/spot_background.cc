@@ -19,7 +19,7 @@ double BlockGrid::At(double u, double v) const {
   return (1 - by) * ((1 - bx) * a + bx * b) + by * ((1 - bx) * c + bx * d);
 }
 
-void BlockGrid::Row(int v, std::vector<float>* out) {
+void BlockGrid::PrepareRow(int v) {
   if (col_t_.empty()) {
     col_i0_.resize(static_cast<size_t>(width_));
     col_i1_.resize(static_cast<size_t>(width_));
@@ -29,6 +29,7 @@ void BlockGrid::Row(int v, std::vector<float>* out) {
       Coordinate(u, width_, values_.cols, &col_i0_[k], &col_i1_[k], &col_t_[k]);
     }
   }
+  if (v == row_v_) return;
   double by;
   int y0, y1;
   Coordinate(v, height_, values_.rows, &y0, &y1, &by);
@@ -37,11 +38,18 @@ void BlockGrid::Row(int v, std::vector<float>* out) {
     row_[static_cast<size_t>(x)] =
         (1 - by) * values_.at<float>(y0, x) + by * values_.at<float>(y1, x);
   }
+  row_v_ = v;
+}
+
+void BlockGrid::Row(int v, std::vector<float>* out) {
+  PrepareRow(v);
   out->resize(static_cast<size_t>(width_));
-  for (size_t u = 0; u < static_cast<size_t>(width_); ++u) {
-    (*out)[u] = static_cast<float>((1 - col_t_[u]) * row_[static_cast<size_t>(col_i0_[u])] +
-                                   col_t_[u] * row_[static_cast<size_t>(col_i1_[u])]);
-  }
+  for (int u = 0; u < width_; ++u) (*out)[static_cast<size_t>(u)] = ValueInRow(u);
+}
+
+void BlockGrid::RowSpan(int v, int u0, int u1, float* out) {
+  PrepareRow(v);
+  for (int u = u0; u < u1; ++u) out[u - u0] = ValueInRow(u);
 }
 
 double BlockGrid::Centre(int b, int size) const {

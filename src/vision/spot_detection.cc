@@ -19,6 +19,7 @@
 
 #include "opl/core/format.h"
 #include "vision/spot_detection_internal.h"
+#include "vision/spot_threshold_mask.h"
 
 namespace opl {
 namespace {
@@ -264,29 +265,19 @@ Result<SpotDetectionResult> DetectSpots(const cv::Mat& image, const SpotDetectio
   const BlockGrid bg(bg_blocks, B, W, H);
   const BlockGrid noise(noise_blocks, B, W, H);
   BlockGrid thr(thr_blocks, B, W, H);
-  cv::Mat mask(H, W, CV_8U);
-  // Blocks holding at least one "on" pixel: the components are labelled only
-  // inside groups of such blocks (a sparse mask of 18 MP costs a full-image
-  // cv::connectedComponentsWithStats 100-200 ms; its active blocks, little).
-  cv::Mat active = cv::Mat::zeros(nby, nbx, CV_8U);
+  // The "on" pixels, and the blocks holding one: the components are
+  // labelled only inside groups of such blocks (a sparse mask of 18 MP costs
+  // a full-image cv::connectedComponentsWithStats 100-200 ms; its active
+  // blocks, little). Coarse to fine or at every pixel: the same mask
+  // (vision/spot_threshold_mask.h).
+  cv::Mat mask, active;
+  int cells_tested = 0;
+  spot_internal::ThresholdMask(smooth, thr_blocks, &thr, B, options.coarse_to_fine, &mask, &active,
+                               &cells_tested);
   {
-    // Row by row: the mask by OpenCV's vectorised comparison (255 where
-    // smooth > threshold, else 0), then the row's blocks that hold an "on"
-    // pixel (an OR over the block's bytes, vectorised by the compiler).
-    std::vector<float> thr_row;
-    for (int y = 0; y < H; ++y) {
-      thr.Row(y, &thr_row);
-      uint8_t* m = mask.ptr<uint8_t>(y);
-      cv::Mat mask_row(1, W, CV_8U, m);
-      cv::compare(smooth.row(y), cv::Mat(1, W, CV_32F, thr_row.data()), mask_row, cv::CMP_GT);
-      uint8_t* a = active.ptr<uint8_t>(y / B);
-      for (int bx = 0; bx < nbx; ++bx) {
-        if (a[bx] != 0) continue;
-        uint8_t any = 0;
-        for (int x = bx * B, x1 = std::min(W, x + B); x < x1; ++x) any |= m[x];
-        if (any != 0) a[bx] = 1;
-      }
-    }
+    const int C = spot_internal::kThresholdCellPx;
+    const double cells = static_cast<double>((W + C - 1) / C) * ((H + C - 1) / C);
+    result.fine_fraction = cells_tested / cells;
   }
 
   // 3. Components, per group of 8-connected active blocks (a component's

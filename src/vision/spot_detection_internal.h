@@ -13,6 +13,7 @@
 // (x, y); positions and sizes in px, values in DN (the image's units).
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <utility>
 #include <vector>
@@ -37,7 +38,19 @@ class BlockGrid {
   // interpolation table is built on the first call.
   void Row(int v, std::vector<float>* out);
 
+  // Values of row v at columns [u0, u1) into out[0 .. u1 - u0), the very
+  // arithmetic of Row (the same floats, to the bit).
+  void RowSpan(int v, int u0, int u1, float* out);
+
  private:
+  // The column table (first call) and row_ for row v (kept while v repeats).
+  void PrepareRow(int v);
+  float ValueInRow(int u) const {
+    const size_t k = static_cast<size_t>(u);
+    return static_cast<float>((1 - col_t_[k]) * row_[static_cast<size_t>(col_i0_[k])] +
+                              col_t_[k] * row_[static_cast<size_t>(col_i1_[k])]);
+  }
+
   // Block b covers [b B, min((b+1) B, size)); its centre is the midpoint.
   double Centre(int b, int size) const;
   void Coordinate(double p, int size, int n, int* i0, int* i1, double* t) const;
@@ -47,6 +60,7 @@ class BlockGrid {
   int width_, height_;
   std::vector<int> col_i0_, col_i1_;
   std::vector<double> col_t_, row_;
+  int row_v_ = -1;  // the row row_ holds
 };
 
 // One row of a CV_8U or CV_16U image, read as float.

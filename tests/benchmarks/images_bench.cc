@@ -27,6 +27,12 @@
 // both bundle adjustments, identification and locate together ~80 ms of
 // the 1.5 s (docs/images.md, "Time"). Before the spot detector's speed-ups
 // of the same branch: JPEG 1765-1831 ms, spots 251-289 ms per image.
+// Coarse-to-fine threshold (SpotDetectionOptions::coarse_to_fine; the full
+// one as BM_Scene18MP_SpotDetectionPerImage_FullThreshold, the same spots):
+// on the loaded machine (load ~3, 2026-12-03, interleaved with main's build,
+// medians of 3) 3896-3933 ms against main's 3787 ms, decode on 2 threads
+// 307-327 ms (ratio ~12.5 both); spots per image 407 against 409 ms. The
+// fits are ~40% of the spot detection (docs/images.md, "Time").
 //
 // Run by hand (the ctest smoke run skips BM_Scene18MP_.*):
 //   opl_bench --benchmark_filter='BM_Scene18MP_(JpegImagesToScale|ReferenceDecodeEightJpegs.*)'
@@ -172,20 +178,32 @@ cv::Mat FirstImage() {
   return cv::imread(f.dir + "/" + f.scene.shots[0].file, cv::IMREAD_UNCHANGED);
 }
 
-void BM_Scene18MP_SpotDetectionPerImage(benchmark::State& state) {
+void SpotDetectionPerImage(benchmark::State& state, bool coarse_to_fine) {
   const cv::Mat image = FirstImage();
   if (image.empty()) {
     state.SkipWithError("no image");
     return;
   }
+  SpotDetectionOptions options;
+  options.coarse_to_fine = coarse_to_fine;
   size_t n = 0;
   for (auto _ : state) {
-    Result<SpotDetectionResult> r = DetectSpots(image);
+    Result<SpotDetectionResult> r = DetectSpots(image, options);
     n = r.ok() ? r->spots.size() : 0;
   }
   state.counters["spots"] = static_cast<double>(n);
 }
+void BM_Scene18MP_SpotDetectionPerImage(benchmark::State& state) {
+  SpotDetectionPerImage(state, SpotDetectionOptions().coarse_to_fine);
+}
 BENCHMARK(BM_Scene18MP_SpotDetectionPerImage)->Unit(benchmark::kMillisecond)->UseRealTime();
+// The reference: the threshold compared at every pixel (the same spots).
+void BM_Scene18MP_SpotDetectionPerImage_FullThreshold(benchmark::State& state) {
+  SpotDetectionPerImage(state, false);
+}
+BENCHMARK(BM_Scene18MP_SpotDetectionPerImage_FullThreshold)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 
 // Tags per image on 2 threads (libapriltag's nthreads; OpenCV's own pool for
 // aruco), with the references: libapriltag's candidates alone, aruco's alone

@@ -21,7 +21,10 @@
 //     the smoothed image: the block noise times the filter's white-noise gain
 //     sqrt(sum k^2), or, where larger, the smoothed image's noise measured
 //     per block (1.4826 MAD / sqrt(2) of differences 8 px apart, at least 6
-//     smoothing sigmas), which JPEG's correlated noise needs.
+//     smoothing sigmas), which JPEG's correlated noise needs. The pixels are
+//     compared coarse to fine (SpotDetectionOptions::coarse_to_fine): only
+//     in the 8 x 8 cells whose smoothed maximum exceeds a lower bound of the
+//     threshold over the cell; the same mask as comparing every pixel.
 //  3. Components (cv::connectedComponentsWithStats, 8-connected, run only
 //     inside groups of background blocks holding "on" pixels). Rejected:
 //     area outside [min_area_px, max_area_px]; touching the image border
@@ -140,6 +143,13 @@ struct SpotDetectionOptions {
   // weights and the covariance (step 5), not for detection.
   double speckle_contrast = 0.0;
   double speckle_grain_px = 0.0;
+  // Step 2's mask coarse to fine: per 8 x 8 cell the smoothed image's
+  // maximum against a lower bound of the threshold, and the pixels compared
+  // only in the cells that exceed it. The same mask, hence the same spots,
+  // to the bit (src/vision/spot_threshold_mask.h argues why no "on" pixel is
+  // missed); false: every pixel compared (the reference the tests compare
+  // with).
+  bool coarse_to_fine{true};
 
   // Checks every field; the message names the field, its value and the rule.
   Status Validate() const;
@@ -192,6 +202,9 @@ struct SpotDetectionResult {
   int rejected_elongated = 0;       // elongation > max_elongation
   int rejected_merged = 0;          // several peaks
   int rejected_duplicate = 0;       // centre within min_spot_separation_px of a brighter one (step 6)
+  // Fraction of the image's 8 x 8 cells thresholded pixel by pixel (1 when
+  // SpotDetectionOptions::coarse_to_fine is off).
+  double fine_fraction{};
 
   // Short readable summary: counts, background, noise, threshold.
   std::string ToText() const;

@@ -395,6 +395,10 @@ TEST(JpegSpotOffsets, StudyScaleByFileKindOverPlacements) {
     double e = 0, e2 = 0, z = 0, z2 = 0, zt = 0, zt2 = 0;
   };
   std::vector<Sums> sums(variants.size());
+  // Placements refused, by variant: the scene's (seed 14: distractors over
+  // frame tag 2 in all but one camera, docs/images.md), so the same for
+  // every file kind and channel.
+  std::vector<std::vector<int>> refused(variants.size());
   for (int k = 1; k <= n; ++k) {
     Scene scene = test::NoiseFree(test::ClutterScene());
     ASSERT_FALSE(scene.shots.empty());
@@ -426,6 +430,7 @@ TEST(JpegSpotOffsets, StudyScaleByFileKindOverPlacements) {
       if (!report.ok()) {
         std::printf("placement %d, %s, %s: not measured: %s\n", k, KindName(variants[v].kind),
                     SpotChannelName(variants[v].channel), report.status().ToString().c_str());
+        refused[v].push_back(k);
         continue;
       }
       const test::TruthFit fit = test::FitToTruth(*report, *renderer);
@@ -458,8 +463,11 @@ TEST(JpegSpotOffsets, StudyScaleByFileKindOverPlacements) {
                 KindName(variants[v].kind), SpotChannelName(variants[v].channel), s.n, mean,
                 sd / std::sqrt(s.n), sd, std::sqrt(s.e2 / s.n), s.z / s.n, std::sqrt(s.z2 / s.n),
                 s.zt / s.n, std::sqrt(s.zt2 / s.n));
-    EXPECT_EQ(s.n, n);
+    EXPECT_EQ(s.n + static_cast<int>(refused[v].size()), n);
+    EXPECT_EQ(refused[v], refused[0]) << KindName(variants[v].kind) << " " << SpotChannelName(variants[v].channel);
   }
+  // At most one placement in 16 refused (seed 14 is, for its tags).
+  EXPECT_LE(static_cast<int>(refused[0].size()), (n + 15) / 16);
 }
 
 }  // namespace

@@ -221,6 +221,25 @@ const PoseRt* Identifier::BestOnPatch(int s, const Seed& seed, const Eigen::Vect
   return best != nullptr && best_count >= 0.9 * used ? best : nullptr;
 }
 
+// The observations of a seed's nodes (point, offset) placed at (L0, g):
+// those whose beam L0 + g offset exists, whose point is eligible for s and
+// whose offset's Chebyshev radius is in (lo, hi].
+void Identifier::AppendObservations(int s, const std::vector<std::pair<int, Eigen::Vector2i>>& nodes,
+                                    const Eigen::Vector2i& L0, int g, int lo, int hi,
+                                    std::vector<SpotObservation>* obs) const {
+  const PatternIndex& idx = index_[s];
+  for (const auto& [i, o] : nodes) {
+    const int r = o.cwiseAbs().maxCoeff();
+    if (r <= lo || r > hi) continue;
+    const Eigen::Vector2i l = L0 + Apply(g, o);
+    if (!idx.Has(l.x(), l.y()) || !Eligible(i, s)) continue;
+    SpotObservation so;
+    so.beam_id = idx.Id(l.x(), l.y());
+    so.point_in_scene = pool_.p[i];
+    obs->push_back(so);
+  }
+}
+
 // The pose of source s that maps the seed's patch onto the beams
 // L0 + g offset; false when it fails. From `guess` (BestOnPatch): a
 // least-squares fit of the patch's points that fit the guess within its
@@ -229,14 +248,7 @@ bool Identifier::PatchPose(int s, const Seed& seed, const Eigen::Vector2i& L0, i
                          PoseRt* pose) const {
   const PatternIndex& idx = index_[s];
   std::vector<SpotObservation> obs;
-  for (const auto& [i, o] : seed.patch) {
-    const Eigen::Vector2i l = L0 + Apply(g, o);
-    if (!idx.Has(l.x(), l.y()) || !Eligible(i, s)) continue;
-    SpotObservation so;
-    so.beam_id = idx.Id(l.x(), l.y());
-    so.point_in_scene = pool_.p[i];
-    obs.push_back(so);
-  }
+  AppendObservations(s, seed.patch, L0, g, -1, std::numeric_limits<int>::max(), &obs);
   if (obs.size() < 6) return false;
   if (guess != nullptr) return FitPatch(idx, obs, *guess, pose);
   LocateOptions lo;
@@ -265,14 +277,7 @@ bool Identifier::GrownPatchPose(int s, const Seed& seed, const Eigen::Vector2i& 
                                 const std::array<PoseRt, 4>& poses, int num_poses, PoseRt* pose) const {
   const PatternIndex& idx = index_[s];
   std::vector<SpotObservation> obs;
-  for (const auto& [i, o] : seed.patch) {
-    const Eigen::Vector2i l = L0 + Apply(g, o);
-    if (!idx.Has(l.x(), l.y()) || !Eligible(i, s)) continue;
-    SpotObservation so;
-    so.beam_id = idx.Id(l.x(), l.y());
-    so.point_in_scene = pool_.p[i];
-    obs.push_back(so);
-  }
+  AppendObservations(s, seed.patch, L0, g, -1, std::numeric_limits<int>::max(), &obs);
   if (obs.size() < 6) return false;
   int best = -1;
   for (int k = 0; k < num_poses; ++k) {
@@ -301,16 +306,7 @@ int Identifier::ExtendPatchPose(int s, const Seed& seed, const Eigen::Vector2i& 
   for (const auto& f : seed.far) reach = std::max(reach, f.second.cwiseAbs().maxCoeff());
   for (int lo = 2, hi = 4; lo < reach; lo = hi, hi *= 2) {
     const size_t before = obs.size();
-    for (const auto& [i, o] : seed.far) {
-      const int r = o.cwiseAbs().maxCoeff();
-      if (r <= lo || r > hi) continue;
-      const Eigen::Vector2i l = L0 + Apply(g, o);
-      if (!idx.Has(l.x(), l.y()) || !Eligible(i, s)) continue;
-      SpotObservation so;
-      so.beam_id = idx.Id(l.x(), l.y());
-      so.point_in_scene = pool_.p[i];
-      obs.push_back(so);
-    }
+    AppendObservations(s, seed.far, L0, g, lo, hi, &obs);
     if (obs.size() == before) continue;
     PoseRt next;
     if (!FitPatch(idx, obs, *pose, &next)) return fitted;

@@ -183,6 +183,11 @@ class Identifier {
   // The pose of source s that maps the seed's patch onto the beams L0 + g offset.
   bool PatchPose(int s, const Seed& seed, const Eigen::Vector2i& L0, int g, const PoseRt* guess,
                  PoseRt* pose) const;
+  // Appends the observations of a seed's nodes at (L0, g) with Chebyshev
+  // radius in (lo, hi] (identify_hypotheses.cc).
+  void AppendObservations(int s, const std::vector<std::pair<int, Eigen::Vector2i>>& nodes,
+                          const Eigen::Vector2i& L0, int g, int lo, int hi,
+                          std::vector<SpotObservation>* obs) const;
   // A grown seed's pose at (L0, g): of the P3P poses of its cross, the one
   // that carries farthest over the grown patch (step 1b); false when none fits.
   bool GrownPatchPose(int s, const Seed& seed, const Eigen::Vector2i& L0, int g,

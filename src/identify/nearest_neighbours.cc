@@ -76,18 +76,9 @@ NearestNeighbours::NearestNeighbours(const std::vector<Eigen::Vector3d>& points,
   for (int a = 0; a < 3; ++a) {
     cells_[a] = static_cast<int>(std::floor((hi[a] - lo_[a]) / cell_)) + 1;
   }
-  std::vector<std::pair<uint64_t, int>> keyed(n);
-  for (size_t i = 0; i < n; ++i) keyed[i] = {Key(CellOf(points[i])), static_cast<int>(i)};
-  std::sort(keyed.begin(), keyed.end());
-  by_cell_.resize(n);
-  for (size_t q = 0; q < n; ++q) {
-    by_cell_[q] = keyed[q].second;
-    if (q == 0 || keyed[q].first != keyed[q - 1].first) range_[keyed[q].first] = {static_cast<int>(q), 0};
-    range_[keyed[q].first].second = static_cast<int>(q) + 1;
-  }
-  // A dense table of the cells' first points when the box holds few
-  // enough cells (kDenseCellsPerPoint per point): an empty cell then costs
-  // one load instead of a hash look-up.
+  // A dense table of the cells' points when the box holds few enough cells
+  // (kDenseCellsPerPoint per point): an empty cell then costs one load;
+  // otherwise a hash map of the occupied cells.
   const double total = double(cells_.x()) * cells_.y() * cells_.z();
   if (total <= kDenseCellsPerPoint * static_cast<double>(n)) {
     dense_start_.assign(static_cast<size_t>(total) + 1, 0);
@@ -97,7 +88,19 @@ NearestNeighbours::NearestNeighbours(const std::vector<Eigen::Vector3d>& points,
     dense_points_.resize(n);
     std::vector<int> fill(dense_start_.begin(), dense_start_.end() - 1);
     for (size_t i = 0; i < n; ++i) dense_points_[fill[DenseIndex(CellOf(points[i]))]++] = static_cast<int>(i);
+    for (size_t c = 0; c + 1 < dense_start_.size(); ++c) occupied_cells_ += dense_start_[c + 1] > dense_start_[c];
+    return;
   }
+  std::vector<std::pair<uint64_t, int>> keyed(n);
+  for (size_t i = 0; i < n; ++i) keyed[i] = {Key(CellOf(points[i])), static_cast<int>(i)};
+  std::sort(keyed.begin(), keyed.end());
+  by_cell_.resize(n);
+  for (size_t q = 0; q < n; ++q) {
+    by_cell_[q] = keyed[q].second;
+    if (q == 0 || keyed[q].first != keyed[q - 1].first) range_[keyed[q].first] = {static_cast<int>(q), 0};
+    range_[keyed[q].first].second = static_cast<int>(q) + 1;
+  }
+  occupied_cells_ = range_.size();
 }
 
 size_t NearestNeighbours::DenseIndex(const Eigen::Vector3i& c) const {
@@ -189,7 +192,7 @@ void NearestNeighbours::FindByGrid(int i, std::vector<std::pair<double, int>>* k
     // once a shell would hold more cells than are occupied, every point is
     // visited instead.
     const double shell_cells = std::pow(2.0 * r + 1.0, 3.0) - std::pow(std::max(0.0, 2.0 * r - 1.0), 3.0);
-    if (r > 1 && shell_cells > static_cast<double>(range_.size())) {
+    if (r > 1 && shell_cells > static_cast<double>(occupied_cells_)) {
       size = 0;
       for (int j = 0; j < n; ++j) {
         if (j != i) Insert({(points_[j] - p).squaredNorm(), j}, k, &size, knn);

@@ -54,6 +54,8 @@ class NearestNeighbours {
   Eigen::Vector3d lo_ = Eigen::Vector3d::Zero();
   double cell_ = 1.0;
   Eigen::Vector3i cells_ = Eigen::Vector3i::Ones();  // cells a side, per axis
+  size_t occupied_cells_ = 0;
+  // Sparse boxes: the occupied cells by a hash map.
   std::vector<int> by_cell_;                                 // point indices by cell
   std::unordered_map<uint64_t, std::pair<int, int>> range_;  // cell -> [begin, end) of by_cell_
   std::vector<int> dense_start_;   // by DenseIndex: [start, next start) of dense_points_; empty: not dense

@@ -27,6 +27,11 @@
 // both bundle adjustments, identification and locate together ~80 ms of
 // the 1.5 s (docs/images.md, "Time"). Before the spot detector's speed-ups
 // of the same branch: JPEG 1765-1831 ms, spots 251-289 ms per image.
+// 2026-12-03 (load ~1, medians of 3, one run): 3024 ms against 198 ms
+// (ratio 15; 1 thread 383 ms), of which detect_ms 2766 and after_detect_ms
+// 257: the stages after the detection alone take the whole target, so
+// 1.3x is out of reach (docs/images.md, "Time"); libapriltag alone on one
+// image, one thread: 4487 ms at quad_decimate 1, 871 ms at 2.
 // Coarse-to-fine threshold (SpotDetectionOptions::coarse_to_fine; the full
 // one as BM_Scene18MP_SpotDetectionPerImage_FullThreshold, the same spots):
 // on the loaded machine (load ~3, 2026-12-03, interleaved with main's build,

@@ -190,6 +190,11 @@ void AddImageRunOptions(CLI::App& app, ImageRunArgs* args) {
                "from the lit shots of the same camera before detecting spots (they are\n"
                "subtracted by default when the tags show the camera did not move;\n"
                "docs/images.md, 'Laser-off frames')");
+  app.add_flag("--no-dark-frame-exposure", args->no_dark_frame_exposure,
+               "With --images: subtract each laser-off shot as it is, without measuring its\n"
+               "exposure against the lit shot's (by default a laser-off shot whose exposure\n"
+               "differs, from automatic exposure or flickering light, is scaled to the lit\n"
+               "shot's first, with a note; docs/images.md, 'Laser-off frames')");
   app.add_flag("--force", args->force,
                "With --images: measure even when the tag corners scatter more than 3 times\n"
                "what their covariances say (refused otherwise, exit 4: wrong intrinsics, a\n"
@@ -204,6 +209,7 @@ void ApplyImageRunOptions(const ImageRunArgs& args, FrontEndOptions* options) {
   if (channel.ok()) options->spot_channel = *channel;  // CLI11 checked it
   options->force = args.force;
   options->use_dark_frames = !args.no_dark_frames;
+  options->match_dark_frame_exposure = !args.no_dark_frame_exposure;
 }
 
 int RunTool(const std::string& tool, const std::function<int()>& body) {

@@ -90,15 +90,17 @@ void QuietSolverLogging(const std::string& tool);
 void ShowSolverLogging();
 // The options opl_measure and opl_calibrate share for --images runs:
 // --spot-channel (checked by CLI11: usage error 2), --no-dark-frames,
-// --force, --verbose.
+// --no-dark-frame-exposure, --force, --verbose.
 struct ImageRunArgs {
   std::string spot_channel = "red";
   bool no_dark_frames = false;
+  bool no_dark_frame_exposure = false;
   bool force = false;
   bool verbose = false;
 };
 void AddImageRunOptions(CLI::App& app, ImageRunArgs* args);
-// Copies the channel, --no-dark-frames and --force into the front end's options.
+// Copies the channel, --no-dark-frames, --no-dark-frame-exposure and --force
+// into the front end's options.
 void ApplyImageRunOptions(const ImageRunArgs& args, FrontEndOptions* options);
 // Runs `body` (after QuietSolverLogging), turning an escaping exception into "<tool>: internal error:
 // ..." and kExitInternalError. The library itself does not throw on bad input;

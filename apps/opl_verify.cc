@@ -35,7 +35,7 @@ struct Args {
   int threads = 0;
   bool one_pose_per_camera = false;
   bool no_scale_in_adjustment = false;
-  opl::cli::ImageRunArgs image_run;  // --spot-channel, --no-dark-frames, --force, --verbose
+  opl::cli::ImageRunArgs image_run;  // --spot-channel, --no-dark-frames(-exposure), --force, --verbose
 };
 
 int Run(int argc, char** argv) {

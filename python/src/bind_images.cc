@@ -107,6 +107,12 @@ void BindImages(py::module_& m) {
       .def_readwrite("rescale_spot_covariances", &FO::rescale_spot_covariances)
       .def_readwrite("one_pose_per_camera", &FO::one_pose_per_camera)
       .def_readwrite("use_dark_frames", &FO::use_dark_frames)
+      .def_readwrite("max_dark_frame_shift_px", &FO::max_dark_frame_shift_px)
+      .def_readwrite("match_dark_frame_exposure", &FO::match_dark_frame_exposure,
+                     "Scale a laser-off frame to its lit shot's exposure when they differ "
+                     "(default True; docs/images.md, 'Laser-off frames').")
+      .def_readwrite("min_dark_frame_gain", &FO::min_dark_frame_gain)
+      .def_readwrite("max_dark_frame_gain", &FO::max_dark_frame_gain)
       .def_readwrite("scale_in_adjustment", &FO::scale_in_adjustment,
                      "The module as a calibrated projector in the adjustment, its s the "
                      "report's s (default True; docs/multiview.md).")

@@ -308,7 +308,8 @@ class SceneReader : public json_internal::JsonReader {
 
   Status ParseShot(const json& s, const std::string& path, SceneShot* shot) const {
     OPL_RETURN_IF_ERROR(CheckObject(s, path));
-    OPL_RETURN_IF_ERROR(CheckKeys(s, path, {"camera", "file", "lasers", "slice", "placement"}));
+    OPL_RETURN_IF_ERROR(
+        CheckKeys(s, path, {"camera", "file", "lasers", "slice", "placement", "exposure"}));
     OPL_RETURN_IF_ERROR(RequiredString(s, path, "camera", &shot->camera));
     OPL_RETURN_IF_ERROR(RequiredString(s, path, "file", &shot->file));
     if (const json* l = Find(s, "lasers")) {
@@ -325,6 +326,7 @@ class SceneReader : public json_internal::JsonReader {
       OPL_RETURN_IF_ERROR(String(*p, Join(path, "placement"), &shot->placement));
       if (shot->placement.empty()) return Error(Join(path, "placement"), "must not be empty");
     }
+    OPL_RETURN_IF_ERROR(OptionalNumber(s, path, "exposure", &shot->exposure));
     return Status::Ok();
   }
 
@@ -411,6 +413,7 @@ std::string FormatSceneTruthJson(const SceneRenderer& renderer,
                        {"tags", tag_views},
                        {"spots", spot_views}};
     if (!shot.placement.empty()) shot_json["placement"] = shot.placement;
+    if (shot.exposure != 1.0) shot_json["exposure"] = shot.exposure;
     if (!r.distractors.empty()) {
       ojson distractors = ojson::array();
       for (const Distractor& d : r.distractors) {
@@ -489,6 +492,7 @@ std::string FormatMeasurementSceneJson(const Scene& scene, const std::string& de
   for (const SceneShot& s : scene.shots) {
     ojson shot = {{"camera", s.camera}, {"file", s.file}, {"lasers", s.lasers}, {"slice", s.slice}};
     if (!s.placement.empty()) shot["placement"] = s.placement;
+    if (s.exposure != 1.0) shot["exposure"] = s.exposure;
     root["shots"].push_back(shot);
   }
   return root.dump(2) + "\n";

@@ -278,6 +278,7 @@ Result<RenderedShot> SceneRenderer::RenderShot(int shot_index) const {
     layers.spot_light = spot_light->clean_dn / full_scale;
     spot_light->clean_dn.release();
     layers.wall_texture = wall_texture_;
+    layers.exposure = shot.exposure;
     layers.distractors = distractors_[static_cast<size_t>(scene_.FindCamera(shot.camera) -
                                                           scene_.cameras.data())];
     out.distractors = layers.distractors;

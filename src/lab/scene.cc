@@ -270,6 +270,9 @@ Status Scene::Validate() const {
                  "name the placement it shows");
     }
     if (s.slice < 0) return Bad(path + ".slice", std::to_string(s.slice) + ": must be >= 0");
+    if (!(s.exposure > 0.0 && s.exposure <= 10.0)) {
+      return BadNumber(path + ".exposure", s.exposure, "must be in (0, 10]");
+    }
     if (module && s.slice >= module->surface.num_slices()) {
       return Bad(path + ".slice", std::to_string(s.slice) + ": the module's surface has " +
                                       std::to_string(module->surface.num_slices()) +
@@ -290,6 +293,17 @@ Status Scene::ValidateForRendering() const {
     }
   }
   if (!module) return Bad("module", "missing (rendering needs the module and its surface)");
+  if (!image.HasSceneLook()) {
+    for (size_t k = 0; k < shots.size(); ++k) {
+      if (shots[k].exposure != 1.0) {
+        return Bad("shots[" + std::to_string(k) + "].exposure",
+                   FormatNumber(shots[k].exposure) +
+                       ": the plain lab renders every shot at exposure 1; a shot's exposure "
+                       "needs the harder lab (an image field such as color, wall_texture, "
+                       "vignetting or distractors)");
+      }
+    }
+  }
   return Status::Ok();
 }
 

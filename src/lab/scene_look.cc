@@ -166,6 +166,9 @@ Result<SceneImage> ComposeSceneImage(const SceneImageLayers& layers, const Image
   if (!layers.wall_texture.empty() && layers.wall_texture.type() != CV_32FC3) {
     return Status::InvalidArgument("ComposeSceneImage: wall_texture must be CV_32FC3");
   }
+  if (!(layers.exposure > 0.0 && std::isfinite(layers.exposure))) {
+    return Status::InvalidArgument("ComposeSceneImage: exposure must be finite and > 0");
+  }
   const int channels = look.color ? 3 : 1;
   const double bg = look.background_level;
 
@@ -270,7 +273,7 @@ Result<SceneImage> ComposeSceneImage(const SceneImageLayers& layers, const Image
     float* row = scene.ptr<float>(y);
     for (int x = 0; x < W; ++x) {
       const double r2 = std::pow(x - camera.cx_px, 2) + std::pow(y - camera.cy_px, 2);
-      const double v = full_scale * (1.0 - look.vignetting * r2 / r2_corner);
+      const double v = layers.exposure * full_scale * (1.0 - look.vignetting * r2 / r2_corner);
       for (int c = 0; c < channels; ++c) {
         row[channels * x + c] = static_cast<float>(std::max(0.0, row[channels * x + c] * v));
       }

@@ -140,9 +140,34 @@ Status FrontEndRun::Detect() {
     }
     cv::Mat for_spots = image->for_spots;
     SpotDetectionOptions spot_options = options.spots;
-    if (dark >= 0 && best_shift <= options.max_dark_frame_shift_px) {
-      Result<cv::Mat> difference = SubtractDarkFrame(
+    double gain = 1.0;
+    if (dark >= 0 && best_shift <= options.max_dark_frame_shift_px &&
+        options.match_dark_frame_exposure) {
+      const std::string& dark_file = scene.shots[static_cast<size_t>(dark)].file;
+      const Result<DarkFrameGain> g = EstimateDarkFrameGain(
           image->for_spots, dark_images[static_cast<size_t>(dark)], options.spots.saturation_dn);
+      if (!g.ok()) {
+        d.dark_frame_note = "exposure of laser-off shot " + dark_file +
+                            " not measured (" + g.status().message() + "): subtracted as it is";
+      } else if (g->gain < options.min_dark_frame_gain || g->gain > options.max_dark_frame_gain) {
+        d.dark_frame_note = "laser-off shot " + dark_file + " not subtracted: its light is " +
+                            FormatNumber(1.0 / g->gain, 3) + " x this image's (allowed " +
+                            FormatNumber(1.0 / options.max_dark_frame_gain, 3) + " to " +
+                            FormatNumber(1.0 / options.min_dark_frame_gain, 3) +
+                            "): a different light, not an exposure";
+        dark = -1;
+      } else if (DarkFrameGainMatters(*g, image->for_spots.depth())) {
+        gain = g->gain;
+        d.dark_frame_note = "laser-off shot " + dark_file + " scaled by " +
+                            FormatNumber(gain, 4) + " to this image's exposure (it would have left " +
+                            FormatNumber(g->mismatch_dn, 2) +
+                            " DN of the scene; automatic exposure or flickering light?)";
+      }
+    }
+    if (dark >= 0 && best_shift <= options.max_dark_frame_shift_px) {
+      Result<cv::Mat> difference =
+          SubtractDarkFrame(image->for_spots, dark_images[static_cast<size_t>(dark)],
+                            options.spots.saturation_dn, gain);
       if (!difference.ok()) {
         error = Status(difference.status().code(),
                        shot.file + " minus " + scene.shots[static_cast<size_t>(dark)].file + ": " +
@@ -152,6 +177,7 @@ Status FrontEndRun::Detect() {
       for_spots = std::move(*difference);
       spot_options.saturation_dn = 0.0;  // SubtractDarkFrame marks saturation at 65535
       d.dark_frame = dark;
+      d.dark_frame_gain = gain;
     }
     Result<SpotDetectionResult> spots = DetectSpots(for_spots, spot_options);
     if (!spots.ok()) {
@@ -190,9 +216,11 @@ Status FrontEndRun::Detect() {
     f.rejected_blobs_px = data[static_cast<size_t>(i)].rejected_blobs_px;
     f.tags = data[static_cast<size_t>(i)].tags;
     const ImageData& d = data[static_cast<size_t>(i)];
+    if (!d.dark_frame_note.empty()) f.notes.push_back(d.dark_frame_note);
     if (d.dark_frame >= 0) {
       f.dark_frame = scene.shots[static_cast<size_t>(d.dark_frame)].file;
-    } else if (!d.dark_candidates.empty()) {
+      f.dark_frame_gain = d.dark_frame_gain;
+    } else if (!d.dark_candidates.empty() && d.dark_frame_note.empty()) {
       std::string moved;
       for (const auto& [j, shift] : d.dark_candidates) {
         moved += (moved.empty() ? "" : ", ") + scene.shots[static_cast<size_t>(j)].file + " " +

@@ -153,6 +153,29 @@ void FrontEndRun::WarnOutOfRange() {
         "resolution), 0.08 px with 4:4:4, 0.05 px in luma; a random error, not a bias, that "
         "u(s) carries (noise-free: s off by 3e-4 rms against 6e-6 lossless); prefer PNG or TIFF");
   }
+  // Laser-off frames whose exposure differed by more than 5% from their lit
+  // shot's (FrontEndOptions::match_dark_frame_exposure): the match removes
+  // the scene to first order, but the frames' clipping and camera curve
+  // differ too.
+  int rescaled = 0;
+  double worst = 0.0;
+  std::string worst_file;
+  for (const ImageFindings& f : result.images) {
+    const double off = std::abs(f.dark_frame_gain - 1.0);
+    if (f.dark_frame.empty() || off <= 0.05) continue;
+    ++rescaled;
+    if (off > worst) {
+      worst = off;
+      worst_file = f.file;
+    }
+  }
+  if (rescaled > 0) {
+    result.warnings.push_back(
+        std::to_string(rescaled) + " image(s) differ in exposure from their laser-off shot by " +
+        "more than 5% (up to " + FormatNumber(100.0 * worst, 3) + "%, " + worst_file +
+        "): the laser-off frames were rescaled to match; set the cameras to manual exposure "
+        "and avoid flickering light (docs/images.md, 'Laser-off frames')");
+  }
 }
 
 void FrontEndRun::WarnCameraSpotRms() {

@@ -38,6 +38,8 @@ struct ImageData {
   bool lossy_jpeg = false;
   std::vector<Eigen::Vector2d> rejected_blobs_px;
   int dark_frame = -1;  // laser-off shot subtracted, or -1
+  double dark_frame_gain = 1.0;  // its scale (FrontEndOptions::match_dark_frame_exposure)
+  std::string dark_frame_note;   // why its exposure was matched, or why it was not subtracted
   std::vector<std::pair<int, double>> dark_candidates;  // (laser-off shot, tag shift px)
   std::vector<std::string> decode_warnings;  // ShotImage::decode_warnings
 };

@@ -65,6 +65,12 @@ Status FrontEndOptions::Validate() const {
     return Status::InvalidArgument("max_dark_frame_shift_px must be finite and > 0, got " +
                                    FormatNumber(max_dark_frame_shift_px));
   }
+  if (!(min_dark_frame_gain > 0.0 && min_dark_frame_gain <= 1.0 && max_dark_frame_gain >= 1.0 &&
+        max_dark_frame_gain <= 16.0)) {
+    return Status::InvalidArgument("min_dark_frame_gain must be in (0, 1] and max_dark_frame_gain "
+                                   "in [1, 16], got " + FormatNumber(min_dark_frame_gain) + " and " +
+                                   FormatNumber(max_dark_frame_gain));
+  }
   if (num_threads < 0) {
     return Status::InvalidArgument("num_threads must be >= 0, got " +
                                    std::to_string(num_threads));
@@ -90,7 +96,10 @@ std::string FrontEndResult::ToText() const {
     } else {
       out << f.spots_detected << " spots (" << f.blobs_rejected << " other blobs), "
           << f.spots_matched << " matched";
-      if (!f.dark_frame.empty()) out << ", minus " << f.dark_frame;
+      if (!f.dark_frame.empty()) {
+        out << ", minus " << f.dark_frame;
+        if (f.dark_frame_gain != 1.0) out << " x " << FormatNumber(f.dark_frame_gain, 4);
+      }
     }
     if (f.placed) {
       out << ", RMS tags " << FormatNumber(f.tag_rms_px, 3) << " px, spots "

@@ -78,6 +78,7 @@ std::string ImageMeasureReport::ToJson() const {
                       {"lossy_jpeg", f.lossy_jpeg},
                       {"laser_off", f.laser_off},
                       {"dark_frame", f.dark_frame.empty() ? ordered_json(nullptr) : ordered_json(f.dark_frame)},
+                      {"dark_frame_gain", f.dark_frame.empty() ? ordered_json(nullptr) : ordered_json(f.dark_frame_gain)},
                       {"notes", f.notes},
                       {"decode_warnings", f.decode_warnings}});
   }

@@ -158,6 +158,56 @@ TEST(SceneLook, VignettingDarkensTheCornersAsDocumented) {
   EXPECT_NEAR(shot->image.at<uint16_t>(cv_, cu), 0.5 * 65535.0, 2.0);
 }
 
+// A shot's exposure scales all its light before the sensor: a laser-off
+// shot at exposure 0.5 of a vignetted wall with distractors is half the
+// same shot at exposure 1, pixel for pixel (noise-free, 16 bit: to the
+// rounding). The plain lab refuses an exposure, naming the shot's field,
+// and the field is read, range-checked and written back.
+TEST(SceneLook, ExposureScalesTheShotsLight) {
+  Scene scene = WallScene(321, 241);
+  scene.image.vignetting = 0.3;
+  scene.image.distractors = 6;
+  scene.shots[0].lasers.clear();
+  scene.shots.push_back(scene.shots[0]);
+  scene.shots[1].file = "half.png";
+  scene.shots[1].exposure = 0.5;
+  Result<SceneRenderer> renderer = SceneRenderer::Create(scene);
+  ASSERT_TRUE(renderer.ok()) << renderer.status().message();
+  Result<RenderedShot> full = renderer->RenderShot(0);
+  Result<RenderedShot> half = renderer->RenderShot(1);
+  ASSERT_TRUE(full.ok() && half.ok());
+  ASSERT_EQ(full->image.type(), CV_16UC1);
+  double worst = 0.0, brightest = 0.0;
+  for (int y = 0; y < full->image.rows; ++y) {
+    for (int x = 0; x < full->image.cols; ++x) {
+      const double a = full->image.at<uint16_t>(y, x), b = half->image.at<uint16_t>(y, x);
+      if (a >= 65535.0) continue;  // clipped at exposure 1
+      worst = std::max(worst, std::abs(b - 0.5 * a));
+      brightest = std::max(brightest, a);
+    }
+  }
+  EXPECT_GT(brightest, 0.5 * 65535.0);  // a distractor, not only the wall
+  EXPECT_LE(worst, 1.0);
+
+  Scene plain = WallScene(321, 241);
+  plain.shots[0].exposure = 0.9;
+  const Status refused = plain.ValidateForRendering();
+  ASSERT_FALSE(refused.ok());
+  EXPECT_NE(refused.message().find("shots[0].exposure: 0.9: the plain lab"), std::string::npos)
+      << refused.message();
+  scene.shots[1].exposure = 0.0;
+  const Status zero = scene.Validate();
+  ASSERT_FALSE(zero.ok());
+  EXPECT_NE(zero.message().find("shots[1].exposure: 0: must be in (0, 10]"), std::string::npos)
+      << zero.message();
+
+  scene.shots[1].exposure = 0.5;
+  Result<Scene> back = ParseSceneJson(FormatMeasurementSceneJson(scene, ""), "s.json", "", SceneUse::kMeasure);
+  ASSERT_TRUE(back.ok()) << back.status().message();
+  EXPECT_EQ(back->shots[0].exposure, 1.0);
+  EXPECT_EQ(back->shots[1].exposure, 0.5);
+}
+
 TEST(SceneLook, DistractorsBelongToTheCameraLitOrDark) {
   Scene scene = WallScene();
   scene.image.bit_depth = 8;

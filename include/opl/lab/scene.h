@@ -204,6 +204,13 @@ struct SceneShot {
   // The module placement of this shot (Scene::module_placements), empty when
   // the scene lists none. With placements, every lit shot names one.
   std::string placement{};
+  // The shot's exposure relative to the scene's, in (0, 10]: the renderer
+  // scales all the light of the image by it (a camera on automatic
+  // exposure, flickering lights), before the sensor's noise and clipping.
+  // The harder lab only (ImageLook::HasSceneLook). The front end ignores
+  // it: it measures a laser-off shot's exposure against each lit shot from
+  // the images (vision/dark_frame.h, EstimateDarkFrameGain).
+  double exposure{1.0};
 };
 
 struct Scene {

@@ -19,7 +19,8 @@
 //  4. Defocus: a Gaussian PSF over 1-3 (the caller widens the spots' own
 //     shape by the same sigma, so their light stays an exact Gaussian).
 //  5. Spots: the laser light times the camera's response in each channel.
-//  6. Vignetting: everything times 1 - v (r / r_corner)^2.
+//  6. Vignetting and exposure: everything times (1 - v (r / r_corner)^2) x
+//     the shot's exposure (SceneShot::exposure; 1 unless given).
 //  7. Sensor: to DN, (Bayer: sampled on an RGGB mosaic), shot and read
 //     noise, rounding and clipping, (Bayer: demosaiced by OpenCV).
 // Truth stays exact: tags and spots are where the plain lab puts them; none
@@ -79,6 +80,9 @@ struct SceneImageLayers {
   cv::Mat spot_light;
   cv::Mat wall_texture;  // ReadWallTexture, or empty
   std::vector<Distractor> distractors;
+  // The shot's exposure (SceneShot::exposure): every layer's light is
+  // scaled by it before the sensor (step 6), > 0.
+  double exposure = 1.0;
 };
 
 struct SceneImage {

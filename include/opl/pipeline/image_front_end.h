@@ -171,6 +171,18 @@ struct FrontEndOptions {
   // (median; else the camera moved between the shots and the lit image is
   // used alone, with a note). > 0.
   bool use_dark_frames = true;
+  double max_dark_frame_shift_px = 1.0;
+  // With match_dark_frame_exposure, the laser-off frame's exposure is
+  // measured against the lit shot's (vision/dark_frame.h,
+  // EstimateDarkFrameGain: automatic exposure, flickering lights) and,
+  // where the mismatch matters (DarkFrameGainMatters), the frame is scaled
+  // by it before the subtraction (ImageFindings::dark_frame_gain, and a
+  // note). A gain outside [min, max]_dark_frame_gain is a different scene
+  // light, not an exposure: the frame is not subtracted (a note). Frames of
+  // one exposure are subtracted as they are.
+  bool match_dark_frame_exposure = true;
+  double min_dark_frame_gain = 0.5;
+  double max_dark_frame_gain = 2.0;
   // The scale inside the adjustment (vision/projector_adjustment.h; docs/
   // multiview.md, "The projector model"): after the two-step measurement
   // (MeasureScaleFromImages / MeasureScaleFromFrontEnd), the laser module
@@ -183,7 +195,6 @@ struct FrontEndOptions {
   // COLMAP path keeps no adjustment) or fails, the report falls back to
   // the two-step s and says why. RunImageFrontEnd itself ignores it.
   bool scale_in_adjustment = true;
-  double max_dark_frame_shift_px = 1.0;
   // Worker threads for the detection (and for CalibrateFromImages' re-solves
   // of the shared errors), >= 0; 0 = every core.
   int num_threads = 0;
@@ -240,6 +251,11 @@ struct ImageFindings {
   // line each, vision/image_decode.h). Each such image also gets a warning
   // in FrontEndResult::warnings.
   std::vector<std::string> decode_warnings{};
+  // The factor the laser-off frame (dark_frame) was scaled by before it was
+  // subtracted: its exposure against this image's
+  // (FrontEndOptions::match_dark_frame_exposure); 1 when they match or no
+  // frame was subtracted.
+  double dark_frame_gain{1.0};
 };
 
 // A laser spot in 3D.

@@ -15,6 +15,7 @@
 // (tests/support/lab_truth.h). Seed 1 without laser-off frames in the
 // default suite (red and red-minus-green); OPL_STUDY_SCENES seeds of both (`ctest -L study`: 10).
 // docs/images.md, "Red or red minus green", has the figures.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -43,11 +44,15 @@ struct Tally {
   int visible = 0, found = 0, false_spots = 0, identified = 0, wrong = 0, rejected = 0;
   double sum_z2 = 0.0;
   int within = 0;
+  // The reported s against the truth: sum of (s / s_true - 1)^2 and of
+  // u(s) / s_true, over the measured scenes with a truth fit.
+  double sum_e2 = 0.0, sum_u = 0.0;
+  int with_truth = 0;
 };
 
 // Renders seed k once, then measures it per (dark frames, channel).
-void MeasureSeed(uint64_t seed, const std::vector<bool>& dark_frames, int channels,
-                 Tally tallies[2][3]) {
+void MeasureSeed(uint64_t seed, const std::vector<bool>& dark_frames,
+                 const std::vector<int>& channels, Tally tallies[2][3]) {
   Scene scene = test::ClutterScene();
   ASSERT_FALSE(scene.shots.empty());
   scene.seed = seed;
@@ -58,7 +63,7 @@ void MeasureSeed(uint64_t seed, const std::vector<bool>& dark_frames, int channe
   Result<ModuleCalibration> calibration = ExactCalibration(*scene.module);
   ASSERT_TRUE(calibration.ok());
   for (bool dark : dark_frames) {
-    for (int c = 0; c < channels; ++c) {
+    for (int c : channels) {
       const SpotChannel channel = kChannels[c];
       Tally& t = tallies[dark ? 1 : 0][c];
       ++t.scenes;
@@ -82,10 +87,12 @@ void MeasureSeed(uint64_t seed, const std::vector<bool>& dark_frames, int channe
       const double z =
           fit.points >= 4 ? (report->scale_factor - fit.scale) / report->u_scale_factor : 0.0;
       std::printf("seed %d, %-19s %-16s recall %d/%d, false spots %d, blobs rejected %d, "
-                  "identified %d (wrong %d), z %+.2f\n",
+                  "identified %d (wrong %d), z %+.2f, s / s_true - 1 %+.3e, u(s) %.3e\n",
                   static_cast<int>(seed), dark ? "laser-off frames," : "no laser-off frames,",
                   SpotChannelName(channel), counts.found, counts.visible, counts.false_spots,
-                  rejected, fit.points, fit.wrong, z);
+                  rejected, fit.points, fit.wrong, z,
+                  fit.points >= 4 ? report->scale_factor / fit.scale - 1.0 : 0.0,
+                  report->u_scale_factor);
       t.visible += counts.visible;
       t.found += counts.found;
       t.false_spots += counts.false_spots;
@@ -94,6 +101,12 @@ void MeasureSeed(uint64_t seed, const std::vector<bool>& dark_frames, int channe
       t.rejected += rejected;
       t.sum_z2 += z * z;
       t.within += std::abs(z) <= 2.0 ? 1 : 0;
+      if (fit.points >= 4) {
+        const double e = report->scale_factor / fit.scale - 1.0;
+        t.sum_e2 += e * e;
+        t.sum_u += report->u_scale_factor / fit.scale;
+        ++t.with_truth;
+      }
     }
   }
   std::filesystem::remove_all(dir);
@@ -106,19 +119,21 @@ void PrintTallies(Tally tallies[2][3], bool with_dark) {
       if (t.measured == 0) continue;
       std::printf("%-20s %-16s %d of %d measured: recall %d/%d (%.2f%%), false spots %d (%.1f per "
                   "lit image), blobs rejected %d, identified %d (wrong %d), |z| <= 2 in %d, RMS z "
-                  "%.2f\n",
+                  "%.2f; s / s_true - 1: RMS %.2e, mean u(s) %.2e\n",
                   d ? "laser-off frames" : "no laser-off frames",
                   SpotChannelName(kChannels[c]), t.measured, t.scenes, t.found, t.visible,
                   100.0 * t.found / std::max(1, t.visible), t.false_spots,
                   t.false_spots / (8.0 * t.measured), t.rejected, t.identified, t.wrong, t.within,
-                  std::sqrt(t.sum_z2 / t.measured));
+                  std::sqrt(t.sum_z2 / t.measured),
+                  std::sqrt(t.sum_e2 / std::max(1, t.with_truth)),
+                  t.sum_u / std::max(1, t.with_truth));
     }
   }
 }
 
 TEST(SpotChannelStudy, RedMinusGreenAgainstRedWithoutLaserOffFrames) {
   Tally tallies[2][3];
-  MeasureSeed(1, {false}, 2, tallies);
+  MeasureSeed(1, {false}, {0, 1}, tallies);
   PrintTallies(tallies, false);
   const Tally& red = tallies[0][0];
   const Tally& rmg = tallies[0][1];
@@ -138,13 +153,34 @@ TEST(SpotChannelStudy, StudyOverSeeds) {
   const int n = env != nullptr ? std::atoi(env) : 0;
   if (n <= 0) GTEST_SKIP() << "OPL_STUDY_SCENES=<N> (ctest -L study: 10)";
   Tally tallies[2][3];
-  for (int k = 1; k <= n; ++k) MeasureSeed(static_cast<uint64_t>(k), {false, true}, 3, tallies);
+  for (int k = 1; k <= n; ++k) {
+    MeasureSeed(static_cast<uint64_t>(k), {false, true}, {0, 1, 2}, tallies);
+  }
   PrintTallies(tallies, true);
   // With laser-off frames (the default) no spot is wrongly identified;
   // without them clutter can be (seeds 1-2: 1 with red, 3 with
   // red-minus-green), which is why they are the default.
   for (int c = 0; c < 3; ++c) EXPECT_EQ(tallies[1][c].wrong, 0);
   EXPECT_EQ(tallies[1][0].measured, n);
+}
+
+// Red against luma with the laser-off frames (the case where luma could be
+// chosen for 4:2:0 JPEG, docs/images.md "The JPEG bias"): the error of the
+// reported s against the truth, not only its z. By hand:
+// OPL_STUDY_LUMA_SCENES=<N> (first seed OPL_STUDY_FIRST_SEED, default 1).
+TEST(SpotChannelStudy, RedAgainstLumaWithLaserOffFrames) {
+  const char* env = std::getenv("OPL_STUDY_LUMA_SCENES");
+  const int n = env != nullptr ? std::atoi(env) : 0;
+  if (n <= 0) GTEST_SKIP() << "OPL_STUDY_LUMA_SCENES=<N>";
+  const char* first_env = std::getenv("OPL_STUDY_FIRST_SEED");
+  const int first = first_env != nullptr ? std::max(1, std::atoi(first_env)) : 1;
+  Tally tallies[2][3];
+  for (int k = first; k < first + n; ++k) {
+    MeasureSeed(static_cast<uint64_t>(k), {true}, {0, 2}, tallies);
+  }
+  PrintTallies(tallies, true);
+  EXPECT_EQ(tallies[1][0].wrong, 0);
+  EXPECT_EQ(tallies[1][2].wrong, 0);
 }
 
 }  // namespace

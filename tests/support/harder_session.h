@@ -11,12 +11,14 @@
 #pragma once
 
 #include <cmath>
+#include <fstream>
 #include <map>
 #include <set>
 #include <string>
 #include <tuple>
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include "opl/io/scene_json.h"
 #include "opl/lab/render_scene.h"
@@ -31,38 +33,52 @@ inline std::string LaserOffFile(int slice, const std::string& camera) {
   return "s" + std::to_string(slice) + "_off_" + camera + ".jpg";
 }
 
-// `examples_dir`: the folder of calibration_session_small.json (its module
-// file is relative to it).
-inline Scene HarderSession(bool noisy, const std::string& source_dir = SourceDir()) {
-  Result<Scene> read = ReadSceneJson(source_dir + "/examples/calibration_session_small.json");
-  EXPECT_TRUE(read.ok()) << read.status().ToString();
-  if (!read.ok()) return Scene();
-  Scene s = std::move(read).value();
-  s.image.bit_depth = 8;
-  s.image.color = true;
-  s.image.wall_texture = source_dir + "/tests/data/textures/fruits.jpg";
-  s.image.wall_texture_contrast = 1.0;
-  s.image.ambient_gradient = 0.1;
-  s.image.ambient_angle_deg = 20.0;
-  s.image.vignetting = 0.3;
-  s.image.defocus_sigma_px = 0.5;
-  s.image.distractors = 40;
-  s.image.format = "jpeg";
-  s.image.jpeg_quality = 90;
-  s.image.read_noise = noisy ? 0.004 : 0.0;
-  s.image.gain_e_per_dn = noisy ? 20.0 : 0.0;
-  s.spots.speckle_contrast = noisy ? 0.1 : 0.0;
+// The session as scene JSON (the example with its module and the wall
+// texture as absolute paths), for the tools; `source_dir` is the source
+// tree.
+inline nlohmann::json HarderSessionJson(bool noisy, const std::string& source_dir = SourceDir()) {
+  std::ifstream in(source_dir + "/examples/calibration_session_small.json");
+  nlohmann::json j = nlohmann::json::parse(in, nullptr, /*allow_exceptions=*/false);
+  EXPECT_FALSE(j.is_discarded()) << source_dir << ": no examples/calibration_session_small.json";
+  if (j.is_discarded()) return nlohmann::json::object();
+  j["module"] = source_dir + "/examples/calibration_session_small_module.json";
+  nlohmann::json& image = j["image"];
+  image["bit_depth"] = 8;
+  image["color"] = true;
+  image["wall_texture"] = source_dir + "/tests/data/textures/fruits.jpg";
+  image["wall_texture_contrast"] = 1.0;
+  image["ambient_gradient"] = 0.1;
+  image["ambient_angle_deg"] = 20.0;
+  image["vignetting"] = 0.3;
+  image["defocus_sigma_px"] = 0.5;
+  image["distractors"] = 40;
+  image["format"] = "jpeg";
+  image["jpeg_quality"] = 90;
+  image["read_noise"] = noisy ? 0.004 : 0.0;
+  image["gain_e_per_dn"] = noisy ? 20.0 : 0.0;
+  j["spots"]["speckle_contrast"] = noisy ? 0.1 : 0.0;
   std::set<int> slices;
-  for (SceneShot& shot : s.shots) {
-    shot.file = shot.file.substr(0, shot.file.rfind('.')) + ".jpg";
-    slices.insert(shot.slice);
+  for (nlohmann::json& shot : j["shots"]) {
+    const std::string file = shot["file"];
+    shot["file"] = file.substr(0, file.rfind('.')) + ".jpg";
+    slices.insert(shot.value("slice", 0));
   }
   for (int slice : slices) {
-    for (const SceneCamera& camera : std::vector<SceneCamera>(s.cameras)) {
-      s.shots.push_back({camera.name, LaserOffFile(slice, camera.name), {}, slice});
+    for (const nlohmann::json& camera : nlohmann::json(j["cameras"])) {
+      j["shots"].push_back({{"camera", camera["name"]},
+                            {"file", LaserOffFile(slice, camera["name"])},
+                            {"lasers", nlohmann::json::array()},
+                            {"slice", slice}});
     }
   }
-  return s;
+  return j;
+}
+
+inline Scene HarderSession(bool noisy, const std::string& source_dir = SourceDir()) {
+  Result<Scene> scene =
+      ParseSceneJson(HarderSessionJson(noisy, source_dir).dump(), "harder session");
+  EXPECT_TRUE(scene.ok()) << scene.status().ToString();
+  return scene.ok() ? std::move(scene).value() : Scene();
 }
 
 // The same session as lossless PNG (16 bit when noise-free), the rest kept.

@@ -215,8 +215,8 @@ Status FrontEndRun::Detect() {
       }
       if (!others.empty()) {
         f.notes.push_back("no laser-off shot of camera '" + shot.camera + "' on slice " +
-                          std::to_string(shot.slice) + " (the screen moved: " + others +
-                          " not subtracted)");
+                          std::to_string(shot.slice) + ": " + others +
+                          " (other slices) not subtracted");
       }
     }
     if (f.tag_ids.empty()) f.notes.push_back("no tag found");

@@ -187,8 +187,8 @@ void AddImageRunOptions(CLI::App& app, ImageRunArgs* args) {
       ->capture_default_str();
   app.add_flag("--no-dark-frames", args->no_dark_frames,
                "With --images: do not subtract laser-off shots (\"lasers\": [] in the scene)\n"
-               "from the lit shots of the same camera before detecting spots (they are\n"
-               "subtracted by default when the tags show the camera did not move;\n"
+               "from the lit shots of the same camera and slice before detecting spots\n"
+               "(they are subtracted by default when the tags show the camera did not move;\n"
                "docs/images.md, 'Laser-off frames')");
   app.add_flag("--no-dark-frame-exposure", args->no_dark_frame_exposure,
                "With --images: subtract each laser-off shot as it is, without measuring its\n"

@@ -123,12 +123,17 @@ Status FrontEndRun::Detect() {
       return;
     }
     ImageData& d = data[static_cast<size_t>(i)];
-    // The laser-off shot of this camera whose tags moved least.
+    // The laser-off shot of this camera and slice whose tags moved least.
+    // The slice too: in a calibration session the screen moves between
+    // slices while the camera does not, so every laser-off shot of the
+    // camera shows its tags on the same pixels, but only the one of the
+    // shot's own slice shows the screen where the lit shot does.
     int dark = -1;
     double best_shift = std::numeric_limits<double>::infinity();
     for (int j : dark_shots) {
-      if (dark_images[static_cast<size_t>(j)].empty() ||
-          scene.shots[static_cast<size_t>(j)].camera != shot.camera) {
+      const SceneShot& off = scene.shots[static_cast<size_t>(j)];
+      if (dark_images[static_cast<size_t>(j)].empty() || off.camera != shot.camera ||
+          off.slice != shot.slice) {
         continue;
       }
       const double shift = TagShiftPx(d.tags, data[static_cast<size_t>(j)].tags, nullptr);
@@ -220,7 +225,9 @@ Status FrontEndRun::Detect() {
     if (d.dark_frame >= 0) {
       f.dark_frame = scene.shots[static_cast<size_t>(d.dark_frame)].file;
       f.dark_frame_gain = d.dark_frame_gain;
-    } else if (!d.dark_candidates.empty() && d.dark_frame_note.empty()) {
+    } else if (!d.dark_frame_note.empty()) {
+      // Not subtracted, and the note says why (another light).
+    } else if (!d.dark_candidates.empty()) {
       std::string moved;
       for (const auto& [j, shift] : d.dark_candidates) {
         moved += (moved.empty() ? "" : ", ") + scene.shots[static_cast<size_t>(j)].file + " " +
@@ -229,6 +236,18 @@ Status FrontEndRun::Detect() {
       f.notes.push_back("laser-off shot of the same camera not subtracted: its tags moved (" +
                         moved + "; at most " + FormatNumber(options.max_dark_frame_shift_px) +
                         " px)");
+    } else if (options.use_dark_frames && !f.laser_off) {
+      const SceneShot& shot = scene.shots[static_cast<size_t>(i)];
+      std::string others;
+      for (int j : dark_shots) {
+        const SceneShot& off = scene.shots[static_cast<size_t>(j)];
+        if (off.camera == shot.camera) others += (others.empty() ? "" : ", ") + off.file;
+      }
+      if (!others.empty()) {
+        f.notes.push_back("no laser-off shot of camera '" + shot.camera + "' on slice " +
+                          std::to_string(shot.slice) + ": " + others +
+                          " (other slices) not subtracted");
+      }
     }
     if (f.tag_ids.empty()) f.notes.push_back("no tag found");
     images_with_tags += f.tag_ids.empty() ? 0 : 1;

@@ -4,7 +4,10 @@
 // calibrates the module from them against its nominal design (exit 0, a
 // module calibration JSON whose separation is the design's 55 mm within its
 // uncertainty, the per-image report, the heat maps, the overlays, all of them
-// or none); and the usage errors of --images and --overlays.
+// or none); the same on the harder lab (support/harder_session.h), its
+// overlays ringing the true spots and no distractor; and the usage errors
+// of --images and --overlays.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -22,6 +25,8 @@
 #include "opl/io/module_calibration_json.h"
 #include "opl/io/scene_json.h"
 #include "opl/lab/render_scene.h"
+#include "opl/lab/scene_look.h"
+#include "support/harder_session.h"
 
 namespace opl {
 namespace {
@@ -35,6 +40,87 @@ using testing_support::ReadAll;
 const std::string kExamples = OPL_EXAMPLES_DIR;
 const std::string kScene = kExamples + "/calibration_session_small.json";
 const std::string kDesign = kExamples + "/calibration_session_small_module.json";
+
+// How many of a shot's true spots (and of its distractors) are ringed in
+// green on its overlay (`overlays`/<stem>_overlay.jpg): the ring (radius
+// 6 px, 1 px wide, softened by the JPEG) gives 10 or more green pixels
+// (green above 110 and 60 above red and blue: the dimmed image is grey)
+// within 8 px of the true centre, and none within 1 px of it (a ring, not a
+// disc or one moved by its radius). Nothing drawn, or drawn a few pixels
+// off, fails; the grid steps are 19 to 28 px.
+struct RingCount {
+  int visible = 0, ringed = 0;
+  int encircled = 0;  // of the true spots, by the distractors' test below
+  // Distractors inside the image and 12 px or more from every true spot,
+  // and of those the ones encircled in green.
+  int distractors = 0, distractors_ringed = 0;
+};
+
+RingCount RingedTrueSpots(const SceneRenderer& truth, const std::string& overlays,
+                          const std::string& file) {
+  RingCount c;
+  int index = -1;
+  for (size_t i = 0; i < truth.scene().shots.size(); ++i) {
+    if (truth.scene().shots[i].file == file) index = static_cast<int>(i);
+  }
+  EXPECT_GE(index, 0) << file;
+  if (index < 0) return c;
+  Result<RenderedShot> shot = truth.RenderShot(index);
+  EXPECT_TRUE(shot.ok()) << shot.status().ToString();
+  const cv::Mat overlay =
+      cv::imread(overlays + "/" + file.substr(0, file.rfind('.')) + "_overlay.jpg", cv::IMREAD_COLOR);
+  EXPECT_FALSE(overlay.empty()) << file;
+  if (!shot.ok() || overlay.empty()) return c;
+  cv::Mat bgr[3], red_or_blue;
+  cv::split(overlay, bgr);
+  cv::max(bgr[0], bgr[2], red_or_blue);
+  const cv::Mat green = (bgr[1] >= 110) & (bgr[1] - red_or_blue >= 60);
+  const cv::Rect image_rect(0, 0, green.cols, green.rows);
+  const auto ringed = [&](const Eigen::Vector2d& px) {
+    const int col = static_cast<int>(std::lround(px.x()));
+    const int row = static_cast<int>(std::lround(px.y()));
+    const cv::Rect near = cv::Rect(col - 8, row - 8, 17, 17) & image_rect;
+    const cv::Rect centre = cv::Rect(col - 1, row - 1, 3, 3) & image_rect;
+    return cv::countNonZero(green(near)) >= 10 && cv::countNonZero(green(centre)) == 0;
+  };
+  // A ring around a distractor: green at 4.5-7.5 px from its centre in 6
+  // or more of 8 directions (a label beside a near spot's ring, which
+  // `ringed` would count, covers one side only).
+  const auto encircled = [&](const Eigen::Vector2d& px) {
+    bool sector[8] = {};
+    for (int dv = -8; dv <= 8; ++dv) {
+      for (int du = -8; du <= 8; ++du) {
+        const cv::Point p(static_cast<int>(std::lround(px.x())) + du,
+                          static_cast<int>(std::lround(px.y())) + dv);
+        const double r = std::hypot(du, dv);
+        if (r < 4.5 || r > 7.5 || !image_rect.contains(p) || green.at<uint8_t>(p) == 0) continue;
+        const int k = static_cast<int>(std::floor((std::atan2(dv, du) + M_PI) / (M_PI / 4.0)));
+        sector[std::clamp(k, 0, 7)] = true;
+      }
+    }
+    return std::count(sector, sector + 8, true) >= 6;
+  };
+  for (const SpotView& v : shot->spots) {
+    if (!v.visible) continue;
+    ++c.visible;
+    c.ringed += ringed(v.center_px) ? 1 : 0;
+    c.encircled += encircled(v.center_px) ? 1 : 0;
+  }
+  for (const Distractor& d : shot->distractors) {
+    if (!image_rect.contains(cv::Point(static_cast<int>(d.center_px.x()),
+                                       static_cast<int>(d.center_px.y())))) {
+      continue;
+    }
+    bool near_spot = false;  // a true spot's ring would count
+    for (const SpotView& v : shot->spots) {
+      near_spot = near_spot || (v.center_px.allFinite() && (v.center_px - d.center_px).norm() < 12.0);
+    }
+    if (near_spot) continue;
+    ++c.distractors;
+    c.distractors_ringed += encircled(d.center_px) ? 1 : 0;
+  }
+  return c;
+}
 
 TEST(CalibrateImagesCli, SimulateThenCalibrate) {
   testing_support::TempDir dir;
@@ -112,43 +198,69 @@ TEST(CalibrateImagesCli, SimulateThenCalibrate) {
     EXPECT_EQ(overlay.rows, 768) << name;
   }
   // Every spot of a slice's grid is identified and ringed in green where the
-  // truth puts it, in an image of each source on different slices: the ring
-  // (radius 6 px, 1 px wide, softened by the JPEG) gives 10 or more green
-  // pixels (green above 110 and 60 above red and blue: the dimmed image is
-  // grey) within 8 px of the true centre, and none within 1 px of it (a
-  // ring, not a disc or one moved by its radius). Nothing drawn, or drawn a
-  // few pixels off, fails; the grid steps are 19 to 28 px.
+  // truth puts it, in an image of each source on different slices
+  // (RingedTrueSpots).
   Result<SceneRenderer> truth = SceneRenderer::Create(*scene);
   ASSERT_TRUE(truth.ok()) << truth.status().ToString();
   for (const std::string file : {"s0_A_cam0.png", "s1_B_cam1.png"}) {
-    int index = -1;
-    for (size_t i = 0; i < scene->shots.size(); ++i) {
-      if (scene->shots[i].file == file) index = static_cast<int>(i);
-    }
-    ASSERT_GE(index, 0) << file;
-    Result<RenderedShot> shot = truth->RenderShot(index);
-    ASSERT_TRUE(shot.ok()) << shot.status().ToString();
-    const cv::Mat overlay =
-        cv::imread(overlays + "/" + file.substr(0, file.rfind('.')) + "_overlay.jpg", cv::IMREAD_COLOR);
-    ASSERT_FALSE(overlay.empty()) << file;
-    cv::Mat bgr[3], red_or_blue;
-    cv::split(overlay, bgr);
-    cv::max(bgr[0], bgr[2], red_or_blue);
-    const cv::Mat green = (bgr[1] >= 110) & (bgr[1] - red_or_blue >= 60);
-    int visible = 0, ringed = 0;
-    for (const SpotView& v : shot->spots) {
-      if (!v.visible) continue;
-      ++visible;
-      const int col = static_cast<int>(std::lround(v.center_px.x()));
-      const int row = static_cast<int>(std::lround(v.center_px.y()));
-      const cv::Rect image_rect(0, 0, green.cols, green.rows);
-      const cv::Rect near = cv::Rect(col - 8, row - 8, 17, 17) & image_rect;
-      const cv::Rect centre = cv::Rect(col - 1, row - 1, 3, 3) & image_rect;
-      if (cv::countNonZero(green(near)) >= 10 && cv::countNonZero(green(centre)) == 0) ++ringed;
-    }
-    std::printf("%s: %d of %d true spots ringed in green\n", file.c_str(), ringed, visible);
-    EXPECT_EQ(visible, 121) << file;
-    EXPECT_GE(ringed, visible - 2) << file;
+    const RingCount c = RingedTrueSpots(*truth, overlays, file);
+    std::printf("%s: %d of %d true spots ringed in green\n", file.c_str(), c.ringed, c.visible);
+    EXPECT_EQ(c.visible, 121) << file;
+    EXPECT_GE(c.ringed, c.visible - 2) << file;
+  }
+}
+
+// The harder lab (tests/support/harder_session.h: colour JPEG 90 on a
+// photograph of fruit, ramp, vignetting, defocus, 40 distractors per
+// camera, speckle and sensor noise, a laser-off shot per camera and slice):
+// opl_simulate renders it, opl_calibrate --overlays calibrates from it
+// (exit 0, the separation within 3 u of 55 mm) and writes one overlay per
+// shot, laser-off shots included; on lit shots of both sources and two
+// slices the identified spots are ringed in green on the true spot pixels,
+// and no distractor is: a ring drawn on a distractor's centre would be one
+// of its green pixels within 8 px and none within 1 px.
+TEST(CalibrateImagesCli, HarderSessionOverlaysRingTheTrueSpots) {
+  testing_support::TempDir dir;
+  const std::string source_dir = kExamples + "/..";
+  const std::string scene_file = dir.File("harder_session.json");
+  std::ofstream(scene_file) << test::HarderSessionJson(/*noisy=*/true, source_dir).dump(1);
+  const std::string shots = dir.File("shots");
+  RunResult r = Simulate("images --scene " + scene_file + " --out " + shots + " --threads 2");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const std::string out = dir.File("cal.json");
+  const std::string overlays = dir.File("overlays");
+  r = Calibrate("--images " + shots + " --scene " + scene_file + " --design " + kDesign +
+                " --out " + out + " --overlays " + overlays + " --threads 2");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_THAT(r.out, HasSubstr("s1_B_cam1.jpg (cam1)"));
+  EXPECT_THAT(r.out, HasSubstr("minus s1_off_cam1.jpg"));
+  Result<ModuleCalibration> cal = ReadModuleCalibrationJson(out);
+  ASSERT_TRUE(cal.ok()) << cal.status().ToString();
+  ASSERT_EQ(cal->separations.size(), 1u);
+  const Separation& sep = cal->separations[0];
+  std::printf("harder session: separation %.4f mm +- %.4f mm\n", sep.length_mm, sep.u_length_mm);
+  EXPECT_GT(sep.u_length_mm, 0.02);
+  EXPECT_LT(sep.u_length_mm, 0.2);
+  EXPECT_NEAR(sep.length_mm, 55.0, 3.0 * sep.u_length_mm);
+
+  Result<Scene> scene = ReadSceneJson(scene_file);
+  ASSERT_TRUE(scene.ok()) << scene.status().ToString();
+  ASSERT_EQ(scene->shots.size(), 27u);
+  int files = 0;
+  for (const auto& e : std::filesystem::directory_iterator(overlays)) files += e.is_regular_file();
+  EXPECT_EQ(files, 27);
+  Result<SceneRenderer> truth = SceneRenderer::Create(*scene);
+  ASSERT_TRUE(truth.ok()) << truth.status().ToString();
+  for (const std::string file : {"s1_A_cam0.jpg", "s2_B_cam2.jpg"}) {
+    const RingCount c = RingedTrueSpots(*truth, overlays, file);
+    std::printf("%s: %d of %d true spots ringed in green (%d encircled); %d of %d distractors "
+                "encircled\n",
+                file.c_str(), c.ringed, c.visible, c.encircled, c.distractors_ringed, c.distractors);
+    EXPECT_GE(c.visible, 110) << file;
+    EXPECT_GE(c.ringed, c.visible - 6) << file;
+    EXPECT_GE(c.encircled, c.visible - 6) << file;  // the distractors' test sees rings
+    EXPECT_GE(c.distractors, 10) << file;
+    EXPECT_EQ(c.distractors_ringed, 0) << file;
   }
 }
 

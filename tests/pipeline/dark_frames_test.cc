@@ -281,6 +281,42 @@ TEST(DarkFrames, ADarkFrameOfAnotherLightIsNotUsed) {
   EXPECT_GT(fe->images[0].spots_detected, 100);
 }
 
+// A laser-off shot of another slice: in a calibration session the screen
+// moves between slices and the cameras do not, so its tags sit on the same
+// pixels (shift 0) and only the slice tells it apart. It is not subtracted,
+// and the image says why. (Before the slice was compared, it was: cam0's
+// lit shot got it.)
+TEST(DarkFrames, ADarkFrameOfAnotherSliceIsNotUsed) {
+  Result<Scene> read = ReadSceneJson(SourceDir() + "/examples/scene_small.json");
+  ASSERT_TRUE(read.ok());
+  Scene scene = *read;
+  scene.shots.resize(4);  // grid A, cameras 0-3
+  scene.shots.push_back({"cam0", "cam0_off.png", {}, 0});
+  const std::filesystem::path dir = FreshTempDir("dark_frame_other_slice");
+  ASSERT_TRUE(test::RenderShotsTo(scene, dir, 2).ok());
+  FrontEndOptions options;
+  options.num_threads = 2;
+  Result<FrontEndResult> same = RunImageFrontEnd(scene, dir.string(), options);
+  ASSERT_TRUE(same.ok()) << same.status().ToString();
+  EXPECT_EQ(same->images[0].dark_frame, "cam0_off.png");  // the same slice: used
+
+  // Filed as the next screen position's (without the module, whose one
+  // surface has slice 0 only: as opl_measure reads a scene).
+  scene.module.reset();
+  scene.shots.back().slice = 1;
+  Result<FrontEndResult> fe = RunImageFrontEnd(scene, dir.string(), options);
+  ASSERT_TRUE(fe.ok()) << fe.status().ToString();
+  const ImageFindings& cam0 = fe->images[0];
+  EXPECT_TRUE(cam0.dark_frame.empty()) << cam0.dark_frame;
+  ASSERT_FALSE(cam0.notes.empty());
+  EXPECT_EQ(cam0.notes[0],
+            "no laser-off shot of camera 'cam0' on slice 0: cam0_off.png (other slices) not "
+            "subtracted");
+  EXPECT_TRUE(fe->images[1].notes.empty() || fe->images[1].notes[0].find("laser-off") ==
+                                                 std::string::npos);  // cam1 has none
+  std::filesystem::remove_all(dir);
+}
+
 TEST(DarkFrames, AllShotsLaserOffIsRefused) {
   Result<Scene> read = ReadSceneJson(SourceDir() + "/examples/scene_small.json");
   ASSERT_TRUE(read.ok());

@@ -17,7 +17,7 @@
 //     spot_detection.h). Spots inside a detected tag's quad are dropped (its
 //     white cells are not lasers). Laser-off shots ("lasers": []) are read
 //     first: their tags are used, and their images are the dark frames
-//     subtracted from the lit shots of the same camera and place before
+//     subtracted from the lit shots of the same camera, slice and place before
 //     their spots are detected (use_dark_frames, vision/dark_frame.h).
 //  3. Start poses of every image and tag from the tags (PosesFromTags,
 //     vision/tag_poses.h; the scale is that of the nominal tag size).
@@ -166,10 +166,14 @@ struct FrontEndOptions {
   // "Laser-off frames"). A shot with "lasers": [] shows no laser: its tags
   // are used, its spots are not looked for, and it is in no exposure group.
   // With use_dark_frames, each lit shot's spots are detected in its image
-  // minus the laser-off shot of the same camera whose tags moved least,
-  // when their common tags' corners moved at most max_dark_frame_shift_px
-  // (median; else the camera moved between the shots and the lit image is
-  // used alone, with a note). > 0.
+  // minus the laser-off shot of the same camera and the same slice whose
+  // tags moved least, when their common tags' corners moved at most
+  // max_dark_frame_shift_px (median; else the camera moved between the
+  // shots and the lit image is used alone, with a note). The same slice:
+  // in a calibration session the screen moves between slices and the
+  // cameras do not, so the tags cannot tell one slice's laser-off shot from
+  // another's (a lit shot with laser-off shots of its camera on other
+  // slices only is used alone, with a note). > 0.
   bool use_dark_frames = true;
   double max_dark_frame_shift_px = 1.0;
   // With match_dark_frame_exposure, the laser-off frame's exposure is

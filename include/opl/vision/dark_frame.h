@@ -6,8 +6,9 @@
 // A dark frame is only valid for a lit image taken from the same place:
 // the tags both show must sit on the same pixels (TagShiftPx). The front
 // end (pipeline/image_front_end.h) pairs each lit shot with the laser-off
-// shot of its camera whose tags moved least, if they moved no more than a
-// pixel.
+// shot of its camera and slice whose tags moved least, if they moved no
+// more than a pixel (a calibration screen moves between slices; the tags
+// do not).
 #pragma once
 
 #include <vector>

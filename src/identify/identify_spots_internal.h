@@ -1,14 +1,16 @@
 // Private to src/identify: the pieces of IdentifySpots shared by its files
 // (opl/identify/identify_spots.h has the contract and the algorithm's steps).
 //
-//   pattern_index.h/.cc     a pattern's lattice model and nearest-beam lookup
-//   identify_seeds.cc       step 1: seeds (lattice crosses among the points)
-//   identify_growth.cc      step 1b (large sets): a seed's patch grown over its grid
-//   identify_hypotheses.cc  step 2: hypotheses of a seed, their poses, scores
-//   identify_refine.cc      step 3: a candidate grown and refined; assignment
-//   identify_rivals.cc      steps 4-5: alternatives of a detection, its cost
-//   identify_spots.cc       IdentifySpots: the search over seeds, decisions
-//   identify_result.cc      options validation, result counts and text
+//   pattern_index.h/.cc       a pattern's lattice model and nearest-beam lookup
+//   nearest_neighbours.h/.cc  one index of the points: k nearest (step 1),
+//                             points within a radius (step 1b)
+//   identify_seeds.cc         step 1: seeds (lattice crosses among the points)
+//   identify_growth.cc        step 1b (large sets): a seed's patch grown over its grid
+//   identify_hypotheses.cc    step 2: hypotheses of a seed, their poses, scores
+//   identify_refine.cc        step 3: a candidate grown and refined; assignment
+//   identify_rivals.cc        steps 4-5: alternatives of a detection, its cost
+//   identify_spots.cc         IdentifySpots: the search over seeds, decisions
+//   identify_result.cc        options validation, result counts and text
 //
 // Frames: points are in the scene frame; a pose PoseRt is source_from_scene,
 // a Rigid3d scene_from_source. Angles are chords of unit vectors in the

@@ -14,6 +14,7 @@
 #include <cmath>
 #include <cstdint>
 #include <deque>
+#include <functional>
 #include <limits>
 #include <unordered_map>
 #include <unordered_set>
@@ -21,17 +22,12 @@
 #include <vector>
 
 #include "identify/identify_spots_internal.h"
+#include "identify/nearest_neighbours.h"
 
 namespace opl {
 namespace identify_internal {
 
 namespace {
-
-uint64_t PackCell(int64_t x, int64_t y, int64_t z) {
-  constexpr int64_t kMask = (int64_t{1} << 21) - 1;
-  return (static_cast<uint64_t>(x & kMask) << 42) | (static_cast<uint64_t>(y & kMask) << 21) |
-         static_cast<uint64_t>(z & kMask);
-}
 
 uint64_t PackNode(const Eigen::Vector2i& node) {
   return (static_cast<uint64_t>(static_cast<uint32_t>(node.x())) << 32) |
@@ -40,68 +36,37 @@ uint64_t PackNode(const Eigen::Vector2i& node) {
 
 }  // namespace
 
-PointHash::PointHash(const std::vector<Eigen::Vector3d>& points, double cell) : points_(points) {
-  if (points.empty()) return;
-  Eigen::Vector3d hi = points[0];
-  lo_ = points[0];
-  for (const Eigen::Vector3d& p : points) lo_ = lo_.cwiseMin(p), hi = hi.cwiseMax(p);
-  // At most 2^20 cells a side (the key packs 21 bits an axis).
-  const double extent = (hi - lo_).maxCoeff();
-  cell_ = std::max({cell, extent / double(1 << 20), std::numeric_limits<double>::min()});
-  std::vector<std::pair<uint64_t, int>> keyed(points.size());
-  for (size_t i = 0; i < points.size(); ++i) {
-    const Eigen::Vector3d c = ((points[i] - lo_) / cell_).array().floor();
-    keyed[i] = {PackCell(static_cast<int64_t>(c.x()), static_cast<int64_t>(c.y()), static_cast<int64_t>(c.z())),
-                static_cast<int>(i)};
-  }
-  std::sort(keyed.begin(), keyed.end());
-  order_.resize(keyed.size());
-  for (size_t k = 0; k < keyed.size(); ++k) {
-    order_[k] = keyed[k].second;
-    if (k == 0 || keyed[k].first != keyed[k - 1].first) {
-      range_[keyed[k].first] = {static_cast<int>(k), static_cast<int>(k)};
-    }
-    range_[keyed[k].first].second = static_cast<int>(k) + 1;
-  }
-}
-
-void PointHash::Within(const Eigen::Vector3d& centre, double radius, std::vector<int>* out) const {
-  out->clear();
-  if (order_.empty() || !(radius >= 0.0)) return;
-  const Eigen::Vector3d a = ((centre - lo_).array() - radius) / cell_;
-  const Eigen::Vector3d b = ((centre - lo_).array() + radius) / cell_;
-  // A query far outside the points' box (or at a huge radius) finds nothing
-  // or is refused: the box spans fewer than 2^21 cells.
-  constexpr double kMax = double(1 << 21);
-  if ((b.array() < 0.0).any() || (a.array() > kMax).any()) return;
-  const Eigen::Vector3i c0 = a.cwiseMax(0.0).array().floor().cast<int>();
-  const Eigen::Vector3i c1 = b.cwiseMin(kMax).array().floor().cast<int>();
-  if ((c1 - c0).prod() > 4096) return;  // not a local query
-  const double r2 = radius * radius;
-  for (int x = c0.x(); x <= c1.x(); ++x) {
-    for (int y = c0.y(); y <= c1.y(); ++y) {
-      for (int z = c0.z(); z <= c1.z(); ++z) {
-        const auto it = range_.find(PackCell(x, y, z));
-        if (it == range_.end()) continue;
-        for (int k = it->second.first; k < it->second.second; ++k) {
-          if ((points_[order_[k]] - centre).squaredNorm() <= r2) out->push_back(order_[k]);
-        }
-      }
-    }
-  }
-  std::sort(out->begin(), out->end());
-}
-
-double TypicalStep(const std::vector<Seed>& seeds, const Pool& pool) {
+GrowthScale MakeGrowthScale(const std::vector<Seed>& seeds, const Pool& pool) {
+  GrowthScale scale;
+  if (pool.p.empty()) return scale;
   std::vector<double> steps;
   for (const Seed& s : seeds) {
     if (steps.size() >= 64) break;
     steps.push_back((pool.p[s.pa] - pool.p[s.p0]).norm());
     steps.push_back((pool.p[s.pb] - pool.p[s.p0]).norm());
   }
-  if (steps.empty()) return 0.0;
-  std::nth_element(steps.begin(), steps.begin() + steps.size() / 2, steps.end());
-  return steps[steps.size() / 2];
+  double typical_step = 0.0;
+  if (!steps.empty()) {
+    std::nth_element(steps.begin(), steps.begin() + steps.size() / 2, steps.end());
+    typical_step = steps[steps.size() / 2];
+  }
+  Eigen::Vector3d hi = pool.p[0];
+  scale.corner = pool.p[0];
+  for (const Eigen::Vector3d& p : pool.p) scale.corner = scale.corner.cwiseMin(p), hi = hi.cwiseMax(p);
+  const double extent = (hi - scale.corner).maxCoeff();
+  scale.cell = std::max({0.5 * typical_step, extent / double(1 << 20), std::numeric_limits<double>::min()});
+  return scale;
+}
+
+bool GrowthScale::Local(const Eigen::Vector3d& centre, double radius) const {
+  const Eigen::Vector3d a = ((centre - corner).array() - radius) / cell;
+  const Eigen::Vector3d b = ((centre - corner).array() + radius) / cell;
+  // The points' box spans at most 2^20 + 1 cells a side.
+  constexpr double kMax = double(1 << 21);
+  if ((b.array() < 0.0).any() || (a.array() > kMax).any()) return false;
+  const Eigen::Vector3d c0 = a.cwiseMax(0.0).array().floor();
+  const Eigen::Vector3d c1 = b.cwiseMin(kMax).array().floor();
+  return (c1 - c0).prod() <= 4096.0;
 }
 
 // Breadth-first from the seed's patch: a node v next to a grown node u
@@ -110,8 +75,10 @@ double TypicalStep(const std::vector<Seed>& seeds, const Pool& pool) {
 // (p(u) + p(v + e) - p(u + e), e perpendicular to d), averaged; it takes
 // the one free point within kTolerance steps of the prediction, and is
 // left out (for good) when two points are there (clutter next to a spot,
-// another grid). Nodes never leave [-max_extent, max_extent]^2.
-void GrowSeed(const Pool& pool, const PointHash& hash, int max_extent, Seed* seed) {
+// another grid). Nodes never leave [-max_extent, max_extent]^2; a node
+// whose query is not a local one (GrowthScale) is not grown from there.
+void GrowSeed(const Pool& pool, const NearestNeighbours& points, const GrowthScale& scale, int max_extent,
+              Seed* seed) {
   constexpr double kTolerance = 0.25;  // of the local step
   constexpr size_t kRingSize = 24;     // far nodes kept per ring for the pose
   std::unordered_map<uint64_t, int> node_point;
@@ -131,7 +98,8 @@ void GrowSeed(const Pool& pool, const PointHash& hash, int max_extent, Seed* see
   static const std::array<Eigen::Vector2i, 4> kDirs = {Eigen::Vector2i(1, 0), Eigen::Vector2i(-1, 0),
                                                        Eigen::Vector2i(0, 1), Eigen::Vector2i(0, -1)};
   std::vector<std::pair<int, Eigen::Vector2i>> grown;
-  std::vector<int> near;
+  std::vector<int> near;  // the free points near a prediction
+  const std::function<bool(int)> is_used = [&](int j) { return pool.taken[j] || used.count(j) != 0; };
   while (!queue.empty()) {
     const Eigen::Vector2i u = queue.front();
     queue.pop_front();
@@ -159,17 +127,14 @@ void GrowSeed(const Pool& pool, const PointHash& hash, int max_extent, Seed* see
         ++count;
       }
       if (count == 0 || !(step > 0.0)) continue;  // reached later from another side
-      hash.Within(sum / count, kTolerance * step, &near);
-      int found = -1, candidates = 0;
-      for (int j : near) {
-        if (pool.taken[j] || used.count(j) != 0) continue;
-        found = j;
-        ++candidates;
-      }
-      if (candidates != 1) {
-        if (candidates > 1) failed.insert(key);
+      const Eigen::Vector3d prediction = sum / count;
+      if (!scale.Local(prediction, kTolerance * step)) continue;
+      points.Within(prediction, kTolerance * step, &near, is_used);
+      if (near.size() != 1) {
+        if (near.size() > 1) failed.insert(key);
         continue;
       }
+      const int found = near[0];
       node_point.emplace(key, found);
       used.insert(found);
       grown.push_back({found, v});

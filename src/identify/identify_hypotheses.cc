@@ -18,46 +18,19 @@ namespace identify_internal {
 
 // The hypotheses of source s from a seed (identify_spots.h, step 2): for each
 // symmetry g, up to 6 nodes L0 with the highest histogram counts (at least
-// min_spots), appended to `out`.
+// min_spots), appended to `out`. The histogram of a grown seed is its nodes'
+// offsets (no pose); of another, the offsets of the points that the patch
+// pose (or, when PatchPose fails, each P3P pose of the seed's cross) maps
+// near a node.
 void Identifier::Hypotheses(int s, const Seed& seed, std::vector<Hypothesis>* out) const {
   const PatternIndex& idx = index_[s];
   if (idx.spacing_rad <= 0.0) return;
   const int n = idx.n;
-  const std::array<Eigen::Vector3d, 3> X = {pool_.p[seed.p0], pool_.p[seed.pa], pool_.p[seed.pb]};
   const Eigen::Vector2i L = idx.ref;
-  const std::array<Eigen::Vector3d, 3> f = {idx.Dir(L.x(), L.y()), idx.Dir(L.x() + 1, L.y()),
-                                            idx.Dir(L.x(), L.y() + 1)};
-  std::array<PoseRt, 4> roots;
-  int num_roots = 0;
-  if (seed.grown.empty()) {
-    num_roots = SolveP3P(f, X, &roots);
-    if (PatchPose(s, seed, L, 0, BestOnPatch(s, seed, L, 0, roots, num_roots), &roots[0])) num_roots = 1;
-  } else {
-    // A grown seed: its nodes' offsets are the histogram (one pass, below).
-    num_roots = 1;
-  }
-  using Hist = Hypothesis;
-  std::vector<Hist>& hist = *out;
-  std::vector<Eigen::Vector2i> offsets;
+  std::vector<Hypothesis>& hist = *out;
   std::vector<int> diff(static_cast<size_t>(n + 1) * (n + 1));
-  for (int root = 0; root < num_roots; ++root) {
-    offsets.clear();
-    if (!seed.grown.empty()) {
-      for (const auto& [i, o] : seed.grown) {
-        if (Eligible(i, s)) offsets.push_back(o);
-      }
-    }
-    const PoseRt& P = roots[root];
-    if (seed.grown.empty() && (!P.R.allFinite() || !P.t.allFinite())) continue;
-    for (int i = 0; i < pool_.size() && seed.grown.empty(); ++i) {
-      if (!Eligible(i, s)) continue;
-      const Eigen::Vector3d q = P.R * pool_.p[i] + P.t;
-      if (!(q.x() > 0.0)) continue;
-      const Eigen::Vector2d d = idx.Lattice(q) - L.cast<double>();
-      const Eigen::Vector2d rd = d.array().round();
-      if ((d - rd).cwiseAbs().maxCoeff() > 0.3 || rd.cwiseAbs().maxCoeff() > 2 * n) continue;
-      offsets.push_back(rd.cast<int>());
-    }
+  // The hypotheses of one histogram of offsets from L.
+  auto histogram = [&](const std::vector<Eigen::Vector2i>& offsets) {
     for (int g = 0; g < 8; ++g) {
       std::fill(diff.begin(), diff.end(), 0);
       for (const Eigen::Vector2i& o : offsets) {
@@ -80,15 +53,15 @@ void Identifier::Hypotheses(int s, const Seed& seed, std::vector<Hypothesis>* ou
           diff[r * (n + 1) + c] = v;
         }
       }
-      // The best nodes of this (root, g): up to 6.
-      std::array<Hist, 6> top;
+      // The best nodes of this histogram and g: up to 6.
+      std::array<Hypothesis, 6> top;
       for (auto& t : top) t.count = -1;
       for (int r = 0; r < n; ++r) {
         for (int c = 0; c < n; ++c) {
           const int v = diff[r * (n + 1) + c];
           if (v <= top[5].count) continue;
           if (!idx.Has(c, r)) continue;
-          Hist h{s, g, Eigen::Vector2i(c, r), v};
+          Hypothesis h{s, g, Eigen::Vector2i(c, r), v};
           int k = 5;
           while (k > 0 && top[k - 1].count < v) {
             top[k] = top[k - 1];
@@ -101,6 +74,35 @@ void Identifier::Hypotheses(int s, const Seed& seed, std::vector<Hypothesis>* ou
         if (t.count >= options_.min_spots) hist.push_back(t);
       }
     }
+  };
+  std::vector<Eigen::Vector2i> offsets;
+  if (!seed.grown.empty()) {
+    for (const auto& [i, o] : seed.grown) {
+      if (Eligible(i, s)) offsets.push_back(o);
+    }
+    histogram(offsets);
+    return;
+  }
+  const std::array<Eigen::Vector3d, 3> X = {pool_.p[seed.p0], pool_.p[seed.pa], pool_.p[seed.pb]};
+  const std::array<Eigen::Vector3d, 3> f = {idx.Dir(L.x(), L.y()), idx.Dir(L.x() + 1, L.y()),
+                                            idx.Dir(L.x(), L.y() + 1)};
+  std::array<PoseRt, 4> roots;
+  int num_roots = SolveP3P(f, X, &roots);
+  if (PatchPose(s, seed, L, 0, BestOnPatch(s, seed, L, 0, roots, num_roots), &roots[0])) num_roots = 1;
+  for (int root = 0; root < num_roots; ++root) {
+    const PoseRt& P = roots[root];
+    if (!P.R.allFinite() || !P.t.allFinite()) continue;
+    offsets.clear();
+    for (int i = 0; i < pool_.size(); ++i) {
+      if (!Eligible(i, s)) continue;
+      const Eigen::Vector3d q = P.R * pool_.p[i] + P.t;
+      if (!(q.x() > 0.0)) continue;
+      const Eigen::Vector2d d = idx.Lattice(q) - L.cast<double>();
+      const Eigen::Vector2d rd = d.array().round();
+      if ((d - rd).cwiseAbs().maxCoeff() > 0.3 || rd.cwiseAbs().maxCoeff() > 2 * n) continue;
+      offsets.push_back(rd.cast<int>());
+    }
+    histogram(offsets);
   }
 }
 

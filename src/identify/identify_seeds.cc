@@ -19,14 +19,12 @@ namespace identify_internal {
 // Every point's seed depends on the pool only, so the points are split into
 // `threads` contiguous ranges worked in parallel; the seeds are merged in
 // point order, so the result does not depend on the number of threads.
-std::vector<Seed> FindSeeds(const Pool& pool, int k, int threads) {
+std::vector<Seed> FindSeeds(const Pool& pool, const NearestNeighbours& neighbours, int threads) {
   const int n = pool.size();
   std::vector<Seed> seeds;
   if (n < 5) return seeds;
-  k = std::min(k, n - 1);
-
   // The k nearest neighbours of every point (exact: nearest_neighbours.h).
-  const NearestNeighbours neighbours(pool.p, k);
+  const int k = std::min(neighbours.k(), n - 1);
   struct Axis {
     int plus, minus;
     Eigen::Vector3d a;      // half the step from minus to plus

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "identify/identify_spots_internal.h"
+#include "identify/nearest_neighbours.h"
 #include "opl/core/format.h"
 #include "opl/core/message_text.h"
 #include "opl/geometry/rotation.h"
@@ -26,6 +27,7 @@ using identify_internal::DerivedSeeds;
 using identify_internal::Detection;
 using identify_internal::FindSeeds;
 using identify_internal::Identifier;
+using identify_internal::NearestNeighbours;
 using identify_internal::Pool;
 using identify_internal::SameCorrespondence;
 using identify_internal::Seed;
@@ -157,12 +159,16 @@ Result<IdentifyResult> IdentifySpots(const ModuleCalibration& calibration, const
     }
   }
 
-  const std::vector<Seed> seeds = FindSeeds(pool, options.neighbours, options.num_threads);
+  // One index of the points for the seeds' nearest neighbours (step 1) and
+  // the growth's radius queries (step 1b).
+  const NearestNeighbours neighbours(pool.p, options.neighbours);
+  const std::vector<Seed> seeds = FindSeeds(pool, neighbours, options.num_threads);
   // Large sets: seeds grown over their grids before they are tried (step 1b).
-  std::optional<identify_internal::PointHash> hash;
+  const bool grow = pool.size() > identify_internal::kGrowPoolSize;
+  identify_internal::GrowthScale growth_scale;
   int max_extent = 0;
-  if (pool.size() > identify_internal::kGrowPoolSize) {
-    hash.emplace(pool.p, 0.5 * identify_internal::TypicalStep(seeds, pool));
+  if (grow) {
+    growth_scale = identify_internal::MakeGrowthScale(seeds, pool);
     identifier.set_local_growth(true);
     for (const SourceCalibration& s : calibration.sources) {
       max_extent = std::max(max_extent, s.pattern.beams_per_side() - 1);
@@ -391,9 +397,9 @@ Result<IdentifyResult> IdentifySpots(const ModuleCalibration& calibration, const
         if (!usable(seed)) continue;
         ++*counter;
         const int derived_before = tried_derived;
-        if (hash) {
+        if (grow) {
           Seed grown = seed;
-          identify_internal::GrowSeed(pool, *hash, max_extent, &grown);
+          identify_internal::GrowSeed(pool, neighbours, growth_scale, max_extent, &grown);
           try_seed(grown, true, deferrals < kDeferrals);
         } else {
           try_seed(seed, true, deferrals < kDeferrals);
@@ -418,7 +424,7 @@ Result<IdentifyResult> IdentifySpots(const ModuleCalibration& calibration, const
       rest.p.push_back(pool.p[i]);
       back.push_back(i);
     }
-    std::vector<Seed> more = FindSeeds(rest, options.neighbours, options.num_threads);
+    std::vector<Seed> more = FindSeeds(rest, NearestNeighbours(rest.p, options.neighbours), options.num_threads);
     for (Seed& seed : more) {
       seed.p0 = back[seed.p0];
       seed.pa = back[seed.pa];

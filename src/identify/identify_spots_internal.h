@@ -1,14 +1,16 @@
 // Private to src/identify: the pieces of IdentifySpots shared by its files
 // (opl/identify/identify_spots.h has the contract and the algorithm's steps).
 //
-//   pattern_index.h/.cc     a pattern's lattice model and nearest-beam lookup
-//   identify_seeds.cc       step 1: seeds (lattice crosses among the points)
-//   identify_growth.cc      step 1b (large sets): a seed's patch grown over its grid
-//   identify_hypotheses.cc  step 2: hypotheses of a seed, their poses, scores
-//   identify_refine.cc      step 3: a candidate grown and refined; assignment
-//   identify_rivals.cc      steps 4-5: alternatives of a detection, its cost
-//   identify_spots.cc       IdentifySpots: the search over seeds, decisions
-//   identify_result.cc      options validation, result counts and text
+//   pattern_index.h/.cc       a pattern's lattice model and nearest-beam lookup
+//   nearest_neighbours.h/.cc  one index of the points: k nearest (step 1),
+//                             points within a radius (step 1b)
+//   identify_seeds.cc         step 1: seeds (lattice crosses among the points)
+//   identify_growth.cc        step 1b (large sets): a seed's patch grown over its grid
+//   identify_hypotheses.cc    step 2: hypotheses of a seed, their poses, scores
+//   identify_refine.cc        step 3: a candidate grown and refined; assignment
+//   identify_rivals.cc        steps 4-5: alternatives of a detection, its cost
+//   identify_spots.cc         IdentifySpots: the search over seeds, decisions
+//   identify_result.cc        options validation, result counts and text
 //
 // Frames: points are in the scene frame; a pose PoseRt is source_from_scene,
 // a Rigid3d scene_from_source. Angles are chords of unit vectors in the
@@ -18,9 +20,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <cstdint>
 #include <functional>
-#include <unordered_map>
 #include <utility>
 #include <vector>
 
@@ -36,6 +36,8 @@
 
 namespace opl {
 namespace identify_internal {
+
+class NearestNeighbours;  // nearest_neighbours.h
 
 // The points to identify.
 struct Pool {
@@ -67,38 +69,33 @@ struct Seed {
 // smaller ones exactly as before growth existed.
 inline constexpr int kGrowPoolSize = 4096;
 
-// The points of a set by cells of a uniform 3D grid, for radius queries.
-class PointHash {
- public:
-  // `cell`: the cell size (scene units), enlarged when the set would span
-  // more than 2^20 cells a side.
-  PointHash(const std::vector<Eigen::Vector3d>& points, double cell);
-  // Indices of the points within `radius` of `centre`, ascending; empty
-  // when the query would scan more than 4096 cells (not a local query).
-  void Within(const Eigen::Vector3d& centre, double radius, std::vector<int>* out) const;
-
- private:
-  const std::vector<Eigen::Vector3d>& points_;
-  Eigen::Vector3d lo_ = Eigen::Vector3d::Zero();
-  double cell_ = 1.0;
-  std::vector<int> order_;                                  // point indices by cell
-  std::unordered_map<uint64_t, std::pair<int, int>> range_;  // cell -> [begin, end) of order_
+// The scale of GrowSeed's queries: cells of half the set's typical lattice
+// step (the median step of the best seeds, at most 32 of them), at least
+// 2^-20 of the points' extent, on a lattice anchored at the points' lower
+// corner. A query whose ball's bounding box spans more than 4096 of them
+// (the product over the axes of the differences of its corners' cell
+// indices) is not a local one: the growth has left the scale of the set's
+// lattices. So is one whose box lies beyond the points' (nothing there).
+struct GrowthScale {
+  Eigen::Vector3d corner = Eigen::Vector3d::Zero();  // scene
+  double cell = 1.0;                                 // scene units
+  bool Local(const Eigen::Vector3d& centre, double radius) const;
 };
-
-// The median step length of the best seeds (at most 32 of them): the
-// typical lattice pitch of the set, scene units; 0 without seeds.
-double TypicalStep(const std::vector<Seed>& seeds, const Pool& pool);
+GrowthScale MakeGrowthScale(const std::vector<Seed>& seeds, const Pool& pool);
 
 // Grows the seed's patch over its lattice (identify_growth.cc): nodes
 // predicted from their grown neighbours take the one free point near the
-// prediction; fills seed->far and seed->grown_nodes. Offsets stay within
-// [-max_extent, max_extent].
-void GrowSeed(const Pool& pool, const PointHash& hash, int max_extent, Seed* seed);
+// prediction, found by `points` (an index of pool.p: Within); fills
+// seed->grown and seed->far. Offsets stay within [-max_extent, max_extent];
+// a node whose query is not local (`scale`) is not grown.
+void GrowSeed(const Pool& pool, const NearestNeighbours& points, const GrowthScale& scale, int max_extent,
+              Seed* seed);
 
 // The seeds of the pool (identify_spots.h, step 1), best first: points with
-// two pairs of opposite neighbours among their k nearest, worked in `threads`
+// two pairs of opposite neighbours among their min(k, size - 1) nearest
+// (`neighbours`, an index of pool.p built for k), worked in `threads`
 // threads (the result does not depend on their number).
-std::vector<Seed> FindSeeds(const Pool& pool, int k, int threads);
+std::vector<Seed> FindSeeds(const Pool& pool, const NearestNeighbours& neighbours, int threads);
 
 // The crosses (2a, b), (a, 2b) and (a + b, a - b) derived from a seed's
 // cross (a, b), with the patch points on their lattice.

@@ -1,4 +1,5 @@
-// The k nearest neighbours of a point set, exactly (nearest_neighbours.h).
+// Neighbour queries over a point set, exact: the k nearest of its points and
+// the points within a radius (nearest_neighbours.h).
 #include "identify/nearest_neighbours.h"
 
 #include <algorithm>
@@ -120,6 +121,16 @@ uint64_t NearestNeighbours::Key(const Eigen::Vector3i& c) {
          static_cast<uint64_t>(c.z());
 }
 
+std::pair<const int*, const int*> NearestNeighbours::CellPoints(const Eigen::Vector3i& c) const {
+  if (!dense_start_.empty()) {
+    const size_t d = DenseIndex(c);
+    return {dense_points_.data() + dense_start_[d], dense_points_.data() + dense_start_[d + 1]};
+  }
+  const auto it = range_.find(Key(c));
+  if (it == range_.end()) return {nullptr, nullptr};
+  return {by_cell_.data() + it->second.first, by_cell_.data() + it->second.second};
+}
+
 void NearestNeighbours::Find(int i, std::vector<std::pair<double, int>>* knn) const {
   if (method_ == Method::kGrid) {
     FindByGrid(i, knn);
@@ -172,19 +183,9 @@ void NearestNeighbours::FindByGrid(int i, std::vector<std::pair<double, int>>* k
   const Eigen::Vector3d p = points_[i];
   const Eigen::Vector3i c = CellOf(p);
   auto visit_cell = [&](const Eigen::Vector3i& cell) {
-    if (!dense_start_.empty()) {
-      const size_t d = DenseIndex(cell);
-      for (int q = dense_start_[d]; q < dense_start_[d + 1]; ++q) {
-        const int j = dense_points_[q];
-        if (j != i) Insert({(points_[j] - p).squaredNorm(), j}, k, &size, knn);
-      }
-      return;
-    }
-    const auto it = range_.find(Key(cell));
-    if (it == range_.end()) return;
-    for (int q = it->second.first; q < it->second.second; ++q) {
-      const int j = by_cell_[q];
-      if (j != i) Insert({(points_[j] - p).squaredNorm(), j}, k, &size, knn);
+    const auto [first, last] = CellPoints(cell);
+    for (const int* q = first; q != last; ++q) {
+      if (*q != i) Insert({(points_[*q] - p).squaredNorm(), *q}, k, &size, knn);
     }
   };
   for (int r = 0;; ++r) {
@@ -227,6 +228,55 @@ void NearestNeighbours::FindByGrid(int i, std::vector<std::pair<double, int>>* k
     bound -= 1e-9 * cell_ + 1e-12 * p.cwiseAbs().maxCoeff();
     if (size == k && bound > 0.0 && (*knn)[k - 1].first < bound * bound) return;
   }
+}
+
+void NearestNeighbours::Within(const Eigen::Vector3d& centre, double radius, std::vector<int>* within,
+                               const std::function<bool(int)>& skip) const {
+  within->clear();
+  if (points_.empty() || !(radius >= 0.0) || !centre.allFinite()) return;
+  const double r2 = radius * radius;
+  auto visit = [&](int j) {
+    if ((points_[j] - centre).squaredNorm() <= r2 && !(skip && skip(j))) within->push_back(j);
+  };
+  // Every point the distance test accepts lies within `reach` of centre
+  // along each axis, whatever the rounding of that test, of centre -+ reach
+  // and of the cell arithmetic (which rounds alike for points and bounds).
+  const double reach =
+      radius * (1.0 + 1e-9) + 1e-12 * (centre.cwiseAbs().maxCoeff() + lo_.cwiseAbs().maxCoeff());
+  if (method_ == Method::kSweep) {
+    const int a = sweep_axis_;
+    const double x0 = centre[a] - reach, x1 = centre[a] + reach;
+    auto r = std::lower_bound(order_.begin(), order_.end(), x0,
+                              [&](int j, double x) { return points_[j][a] < x; });
+    for (; r != order_.end() && points_[*r][a] <= x1; ++r) visit(*r);
+    std::sort(within->begin(), within->end());
+    return;
+  }
+  // The block of cells that covers the ball, within the grid.
+  Eigen::Vector3i c0, c1;
+  double block = 1.0;
+  for (int a = 0; a < 3; ++a) {
+    const double f0 = std::floor((centre[a] - reach - lo_[a]) / cell_);
+    const double f1 = std::floor((centre[a] + reach - lo_[a]) / cell_);
+    if (f1 < 0.0 || f0 > cells_[a] - 1.0) return;  // the ball misses the box
+    c0[a] = static_cast<int>(std::max(f0, 0.0));
+    c1[a] = static_cast<int>(std::min(f1, cells_[a] - 1.0));
+    block *= c1[a] - c0[a] + 1.0;
+  }
+  // A ball of more cells than are occupied: every point instead.
+  if (block > static_cast<double>(occupied_cells_)) {
+    for (int j = 0; j < static_cast<int>(points_.size()); ++j) visit(j);
+    return;
+  }
+  for (int x = c0.x(); x <= c1.x(); ++x) {
+    for (int y = c0.y(); y <= c1.y(); ++y) {
+      for (int z = c0.z(); z <= c1.z(); ++z) {
+        const auto [first, last] = CellPoints(Eigen::Vector3i(x, y, z));
+        for (const int* q = first; q != last; ++q) visit(*q);
+      }
+    }
+  }
+  std::sort(within->begin(), within->end());
 }
 
 }  // namespace identify_internal

@@ -1,20 +1,30 @@
-// Private to src/identify: the k nearest neighbours of the points of a set,
-// exactly (FindSeeds, identify_seeds.cc).
+// Private to src/identify: neighbour queries over a fixed point set, exact:
+// the k nearest neighbours of each of its points (FindSeeds,
+// identify_seeds.cc) and the points within a radius of any position
+// (GrowSeed, identify_growth.cc). One index serves both.
 //
-// The result for point i is the k smallest pairs (squared distance to i,
-// index) over the other points, ascending: the keys are unique, so it does
-// not depend on the method. Two methods:
+// The k nearest of point i are the k smallest pairs (squared distance to i,
+// index) over the other points, ascending: the keys are unique, so the
+// result does not depend on the method. The points within a radius are
+// those whose computed squared distance is at most the radius squared, by
+// ascending index: the same for either method. Two methods:
 //  - a sweep along the axis of the largest extent (the points sorted along
 //    it; a point's search runs outwards and stops on a side once the gap
-//    alone exceeds the k-th distance so far): no set-up, but on a surface of
-//    N points each search passes a slab of ~sqrt(N) points;
+//    alone exceeds the k-th distance so far; a radius query passes the
+//    points whose coordinate along it is within the radius): no set-up, but
+//    on a surface of N points each search passes a slab of ~sqrt(N) points;
 //  - a uniform grid of cells about the typical k-th neighbour distance
-//    (measured on a sample): the search visits shells of cells around the
-//    point's own until no unvisited cell can hold a nearer point.
+//    (measured on a sample), tabulated densely or, in a box of many empty
+//    cells, as a hash map of the occupied ones: a k-nearest search visits
+//    shells of cells around the point's own until no unvisited cell can
+//    hold a nearer point; a radius query visits the block of cells that
+//    covers the ball. Either falls back to passing every point when that is
+//    fewer cells (a point far from the others, a radius of many cells).
 // kAuto takes the sweep up to 4096 points and the grid above.
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <unordered_map>
 #include <utility>
 #include <vector>
@@ -28,18 +38,34 @@ class NearestNeighbours {
  public:
   enum class Method { kSweep, kGrid, kAuto };
 
-  // `points` must outlive the object. k >= 1.
+  // `points` must outlive the object. k >= 1: the neighbours Find returns
+  // (the grid's cells are sized for them).
   NearestNeighbours(const std::vector<Eigen::Vector3d>& points, int k, Method method = Method::kAuto);
 
   // The min(k, size - 1) nearest of point i: (squared distance, index),
   // ascending. `knn` is resized.
   void Find(int i, std::vector<std::pair<double, int>>* knn) const;
 
+  // The indices of the points within `radius` of `centre` (squared distance
+  // at most radius^2), ascending, except those `skip` (when given) returns
+  // true for; `skip` is asked only about points within the radius. Any
+  // centre (outside the points' box: whatever lies within reach), radius 0
+  // (the points equal to centre); none for a negative or NaN radius or a
+  // non-finite centre. `within` is overwritten.
+  void Within(const Eigen::Vector3d& centre, double radius, std::vector<int>* within,
+              const std::function<bool(int)>& skip = nullptr) const;
+
+  int k() const { return k_; }
   Method method() const { return method_; }
+  // The grid's cells tabulated densely (false: a hash map of the occupied
+  // ones, or the sweep).
+  bool dense_cells() const { return !dense_start_.empty(); }
 
  private:
   void FindBySweep(int i, std::vector<std::pair<double, int>>* knn) const;
   void FindByGrid(int i, std::vector<std::pair<double, int>>* knn) const;
+  // The points of one cell: [first, last) of point indices, ascending.
+  std::pair<const int*, const int*> CellPoints(const Eigen::Vector3i& c) const;
   Eigen::Vector3i CellOf(const Eigen::Vector3d& p) const;
   static uint64_t Key(const Eigen::Vector3i& c);
   size_t DenseIndex(const Eigen::Vector3i& c) const;

@@ -49,7 +49,8 @@
 //     growth stages of step 3 look only at points near the seed. Without it
 //     a 71 x 71 grid took dozens of failed seeds (a patch pose holds only a
 //     few nodes away). The k nearest neighbours of step 1 come from a grid
-//     of cells instead of a sweep (the same neighbours, exactly).
+//     of cells instead of a sweep (the same neighbours, exactly), and the
+//     growth's radius queries from the same grid.
 //  2. Hypotheses. The patch is taken as lattice nodes L + g o (o its offsets,
 //     g one of the 8 symmetries of the square). The patch's pose at the
 //     central node gives a pose; every point is mapped through it to
